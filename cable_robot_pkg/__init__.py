@@ -1,0 +1,1 @@
+"""cable_robot_pkg package."""

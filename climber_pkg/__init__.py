@@ -1,0 +1,1 @@
+"""climber_pkg package."""

@@ -1,0 +1,46 @@
+"""ament_python package description for paramotion.
+
+One executable per node is registered as a console script; ``setup.cfg`` puts them under
+``lib/paramotion`` so that ``ros2 run paramotion <node>`` finds them after ``colcon build``.
+"""
+from setuptools import find_packages, setup
+
+PACKAGE = 'paramotion'
+
+NODES = [
+    # Shared / smoke graph (paramotion/)
+    'smoke_sim = paramotion.smoke.sim_node:main',
+    'smoke_range_sensor = paramotion.smoke.range_sensor_node:main',
+    'smoke_monitor = paramotion.smoke.monitor_node:main',
+    'bag_recorder = paramotion.bag.recorder_node:main',
+    'bag_player = paramotion.bag.player_node:main',
+    # coverage_pkg (issue 3)
+    # climber_pkg (issue 4)
+    # cable_robot_pkg FAST (issue 5)
+    # cable_robot_pkg workspace (issue 6)
+    # Gough-Stewart simplified Voronoi planner (issue 7)
+]
+
+setup(
+    name=PACKAGE,
+    version='0.1.0',
+    packages=find_packages(exclude=['test', 'test.*']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + PACKAGE]),
+        ('share/' + PACKAGE, ['package.xml']),
+    ],
+    package_data={'': ['*.yaml', '*.json']},
+    include_package_data=True,
+    install_requires=['setuptools'],
+    zip_safe=True,
+    maintainer='paramotion developers',
+    maintainer_email='dev@paramotion.invalid',
+    description='Parallel robots and sensor-based planning papers as a ROS 2 node graph.',
+    license='Apache-2.0',
+    tests_require=['pytest'],
+    entry_points={
+        'console_scripts': NODES + [
+            'paramotion = paramotion.cli:main',
+        ],
+    },
+)
