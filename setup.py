@@ -11,7 +11,7 @@ NODES = [
     # Shared / smoke graph (paramotion/)
     'smoke_sim = paramotion.smoke.sim_node:main',
     'smoke_range_sensor = paramotion.smoke.range_sensor_node:main',
-    'smoke_monitor = paramotion.smoke.monitor_node:main',
+    'smoke_controller = paramotion.smoke.controller_node:main',
     'bag_recorder = paramotion.bag.recorder_node:main',
     'bag_player = paramotion.bag.player_node:main',
     # coverage_pkg (issue 3)

@@ -1,0 +1,173 @@
+"""``paramotion bag record|play|info|reindex``: the bag tools without the ros2 CLI."""
+import sys
+import time
+
+import yaml
+
+from paramotion.bag.reader import bag_info
+
+
+def _spin_node(node_cls, params, until=None, duration=None):
+    """Run one node in this process until Ctrl-C, ``until()`` or ``duration`` wall seconds."""
+    import rclpy
+    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+
+    from paramotion.node import overrides_from_dict
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    node = None
+    executor = SingleThreadedExecutor(context=context)
+    try:
+        node = node_cls(context=context, parameter_overrides=overrides_from_dict(params))
+        executor.add_node(node)
+        end = None if duration is None else time.monotonic() + duration
+        while context.ok():
+            if until is not None and until(node):
+                break
+            if end is not None and time.monotonic() >= end:
+                break
+            executor.spin_once(timeout_sec=0.1)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        executor.shutdown()
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown(context=context)
+    return node
+
+
+def _record(args):
+    from paramotion.bag.recorder_node import BagRecorderNode
+    params = {'output': args.output, 'topics': args.topics or [''],
+              'use_sim_time': args.use_sim_time, 'flush_period': args.flush_period}
+    node = _spin_node(BagRecorderNode, params, duration=args.duration)
+    print(f'recorded {node.writer.message_count} messages to {args.output}')
+    return 0
+
+
+def _play(args):
+    from paramotion.bag.player_node import BagPlayerNode
+    params = {'bag': args.bag, 'topics': args.topics or [''], 'remap': args.remap or [''],
+              'real_time_factor': args.rate, 'publish_period': args.clock_period,
+              'wait_for_clock_subscribers': args.wait_for_subscribers}
+    node = _spin_node(BagPlayerNode, params, until=lambda n: n.finished)
+    print(f'played {node.published} messages from {args.bag}')
+    return 0
+
+
+def format_info(info):
+    """Text like ``ros2 bag info``."""
+    lines = [f'Files:             {info.mcap_path}',
+             f'Bag size:          {info.mcap_path.stat().st_size} B',
+             'Storage id:        mcap',
+             f'Duration:          {info.duration_s:.3f}s',
+             f'Start:             {info.start_ns * 1e-9:.3f}s',
+             f'End:               {info.end_ns * 1e-9:.3f}s',
+             f'Messages:          {info.message_count}',
+             'Topic information:']
+    for name in sorted(info.topics):
+        t = info.topics[name]
+        lines.append(f'  Topic: {name} | Type: {t.msgtype} | Count: {t.count} | '
+                     'Serialization Format: cdr')
+    return '\n'.join(lines)
+
+
+def _info(args):
+    info = bag_info(args.bag)
+    print(format_info(info))
+    if info.problem:
+        print(f'paramotion bag info: error: {info.problem}', file=sys.stderr)
+        return 1
+    if not info.has_metadata:
+        print(f'paramotion bag info: warning: {info.path}/metadata.yaml missing '
+              '(run paramotion bag reindex)', file=sys.stderr)
+        return 1
+    return 0
+
+
+def reindex(bag):
+    """Write ``metadata.yaml`` for a bag from what its .mcap file holds (like ros2 bag reindex).
+
+    Used for bags whose recorder was killed: counts cover the complete chunks only.
+    """
+    info = bag_info(bag)
+    topics = []
+    from paramotion.bag.writer import typestore
+    store = typestore()
+    for name in sorted(info.topics):
+        t = info.topics[name]
+        try:
+            rihs = store.hash_rihs01(t.msgtype)
+        except Exception:
+            rihs = ''
+        topics.append({'topic_metadata': {
+            'name': name, 'type': t.msgtype, 'serialization_format': 'cdr',
+            'offered_qos_profiles': yaml.safe_load(t.offered_qos_profiles or '[]') or [],
+            'type_description_hash': rihs}, 'message_count': t.count})
+    duration = max(0, info.end_ns - info.start_ns)
+    doc = {'rosbag2_bagfile_information': {
+        'version': 9, 'storage_identifier': 'mcap',
+        'duration': {'nanoseconds': duration},
+        'starting_time': {'nanoseconds_since_epoch': info.start_ns},
+        'message_count': info.message_count, 'topics_with_message_count': topics,
+        'compression_format': '', 'compression_mode': '',
+        'relative_file_paths': [info.mcap_path.name],
+        'files': [{'path': info.mcap_path.name,
+                   'starting_time': {'nanoseconds_since_epoch': info.start_ns},
+                   'duration': {'nanoseconds': duration},
+                   'message_count': info.message_count}],
+        'custom_data': {}, 'ros_distro': 'jazzy'}}
+    (info.path / 'metadata.yaml').write_text(yaml.safe_dump(doc, sort_keys=False))
+    return info
+
+
+def _reindex(args):
+    info = reindex(args.bag)
+    print(f'wrote {info.path / "metadata.yaml"}: {info.message_count} messages in '
+          f'{len(info.topics)} topics')
+    if info.problem:
+        print(f'paramotion bag reindex: warning: {info.problem}', file=sys.stderr)
+    return 0
+
+
+def register(subparsers):
+    """Add ``paramotion bag`` and its subcommands."""
+    parser = subparsers.add_parser('bag', help='record, play and inspect rosbag2 MCAP bags',
+                                   description='Record, play and inspect rosbag2 MCAP bags.')
+    sub = parser.add_subparsers(dest='bag_command', metavar='SUBCOMMAND')
+    sub.required = True
+
+    rec = sub.add_parser('record', help='record topics to a new bag',
+                         description='Record topics (all if none given) until Ctrl-C.')
+    rec.add_argument('topics', nargs='*', help='topics to record (default: all)')
+    rec.add_argument('-o', '--output', required=True, help='bag directory to create')
+    rec.add_argument('--duration', type=float, default=None, help='stop after S wall seconds')
+    rec.add_argument('--use-sim-time', action='store_true',
+                     help='stamp messages with /clock time (default: system time)')
+    rec.add_argument('--flush-period', type=float, default=1.0,
+                     help='wall seconds between chunk flushes (default 1)')
+    rec.set_defaults(func=_record)
+
+    play = sub.add_parser('play', help='replay a bag, publishing /clock from it',
+                          description='Replay a bag on sim time: /clock follows the bag.')
+    play.add_argument('bag', help='bag directory')
+    play.add_argument('--topics', nargs='*', help='topics to play (default: all)')
+    play.add_argument('--remap', nargs='*', help="topic remappings 'from:=to'")
+    play.add_argument('--rate', type=float, default=1.0, help='playback rate (0 = max)')
+    play.add_argument('--clock-period', type=float, default=0.01,
+                      help='sim seconds per /clock tick (default 0.01)')
+    play.add_argument('--wait-for-subscribers', type=int, default=0,
+                      help='hold time until this many /clock subscribers are present')
+    play.set_defaults(func=_play)
+
+    info = sub.add_parser('info', help='summarise a bag (recovers damaged ones)',
+                          description='Print topics, counts and duration of a bag.')
+    info.add_argument('bag', help='bag directory or .mcap file')
+    info.set_defaults(func=_info)
+
+    rei = sub.add_parser('reindex', help='rebuild metadata.yaml of an unclosed bag',
+                         description='Rebuild metadata.yaml from the .mcap file.')
+    rei.add_argument('bag', help='bag directory')
+    rei.set_defaults(func=_reindex)
+    return parser

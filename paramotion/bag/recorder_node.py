@@ -1,0 +1,91 @@
+"""Bag recorder node: subscribes to topics and writes a rosbag2 MCAP bag (like ``ros2 bag record``).
+
+Messages are received serialised (no deserialisation cost) and stamped with the node's clock,
+which is sim time by default, as rosbag2 does with ``use_sim_time``. Subscriptions adapt their
+QoS to the publishers and the publishers' profiles are stored as ``offered_qos_profiles``, so a
+player can republish latched topics as latched. Chunks are flushed every ``flush_period``
+seconds of wall time: a recorder killed with SIGKILL loses at most that much.
+"""
+from rclpy.clock import Clock, ClockType
+
+from paramotion.bag.qos_yaml import adapted_subscription_qos
+from paramotion.bag.writer import BagWriter
+from paramotion.msgtypes import message_class
+from paramotion.node import Param, ParamotionNode, run_node
+
+
+class BagRecorderNode(ParamotionNode):
+    """Record the selected topics (all if none are given) into ``output``."""
+
+    PARAMS = (
+        Param('output', 'bag', 'Bag directory to create; it must not exist yet.',
+              read_only=True),
+        Param('topics', [''], 'Topics to record; empty records every topic discovered.',
+              read_only=True),
+        Param('flush_period', 1.0, 'Wall-clock seconds between chunk flushes to disk.',
+              min=0.01, max=10.0, read_only=True),
+        Param('discovery_period', 0.5, 'Wall-clock seconds between topic discovery passes.',
+              min=0.05, max=10.0, read_only=True),
+    )
+
+    def __init__(self, node_name='bag_recorder', **kwargs):
+        super().__init__(node_name, **kwargs)
+        self.wanted = {t for t in self.params.topics if t}
+        self.writer = BagWriter(self.params.output, flush_period=self.params.flush_period)
+        self._subs = {}
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._flush_timer = self.create_timer(
+            self.params.flush_period, self.writer.maybe_flush, clock=steady)
+        self._discovery_timer = self.create_timer(
+            self.params.discovery_period, self.discover, clock=steady)
+
+    def discover(self):
+        """Subscribe to every wanted topic that has a publisher and is not recorded yet.
+
+        ``/clock`` is subscribed last, once every other wanted topic is recorded: a simulator
+        waiting for its ``/clock`` subscribers then starts time only when nothing is missed.
+        """
+        found = self.get_topic_names_and_types()
+        for topic, types in sorted(found, key=lambda item: item[0] == '/clock'):
+            if topic == '/clock' and self.wanted and set(self.missing_topics()) - {'/clock'}:
+                continue
+            if topic in self._subs or (self.wanted and topic not in self.wanted):
+                continue
+            if not self.wanted and topic in ('/rosout', '/parameter_events'):
+                continue
+            infos = [i for i in self.get_publishers_info_by_topic(topic)
+                     if i.node_name != self.get_name()]
+            if not infos:
+                continue
+            self.subscribe(topic, types[0], [i.qos_profile for i in infos])
+        return sorted(self._subs)
+
+    def missing_topics(self):
+        """Wanted topics not subscribed yet (no publisher seen)."""
+        return sorted(self.wanted - set(self._subs))
+
+    def subscribe(self, topic, msgtype, offered):
+        """Start recording ``topic`` of ``msgtype`` with the publishers' ``offered`` QoS."""
+        self.writer.add_topic(topic, msgtype, offered)
+        qos = adapted_subscription_qos(offered)
+        self._subs[topic] = self.create_subscription(
+            message_class(msgtype), topic, lambda data, t=topic: self._on_message(t, data),
+            qos, raw=True)
+
+    def _on_message(self, topic, data):
+        self.writer.write(topic, self.get_clock().now().nanoseconds, data)
+
+    def destroy_node(self):
+        for sub in self._subs.values():
+            self.destroy_subscription(sub)
+        self._subs.clear()
+        self.writer.close()
+        return super().destroy_node()
+
+
+def main(args=None):
+    run_node(BagRecorderNode, args)
+
+
+if __name__ == '__main__':
+    main()

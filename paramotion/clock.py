@@ -1,0 +1,94 @@
+"""Clock-owning nodes: the simulator (and the bag player) publish ``/clock``.
+
+A :class:`ClockSourceNode` advances simulated time in fixed periods. Two ways to drive it:
+
+- **lock-step** (``lockstep: true``, used by :class:`paramotion.graph.Graph` when all nodes share
+  one executor): the runner calls :meth:`advance` itself, then lets the executor drain every
+  callback that the new time and the new messages made ready, then advances again. Nothing
+  depends on wall-clock speed, so a scenario is as fast as the machine allows and its results
+  are the same on a fast and a slow machine.
+- **free-running** (``lockstep: false``, the default when a node runs as its own process): a
+  steady wall-clock timer calls :meth:`advance` at ``real_time_factor`` times real time, so
+  nodes in other processes see ``/clock`` advance smoothly over DDS.
+"""
+from builtin_interfaces.msg import Time
+from rclpy.clock import Clock, ClockType
+from rosgraph_msgs.msg import Clock as ClockMsg
+
+from paramotion.node import Param, ParamotionNode
+from paramotion.qos import CLOCK_QOS
+
+NS = 1_000_000_000
+
+
+def stamp_from_ns(ns):
+    """builtin_interfaces/Time from integer nanoseconds."""
+    return Time(sec=int(ns // NS), nanosec=int(ns % NS))
+
+
+class ClockSourceNode(ParamotionNode):
+    """Base of nodes that own simulated time and publish ``/clock``."""
+
+    USE_SIM_TIME_DEFAULT = False
+    PARAMS = (
+        Param('publish_period', 0.01, 'Simulated seconds advanced per step; /clock and state '
+              'are published once per step.', min=1e-4, max=1.0, read_only=True),
+        Param('real_time_factor', 1.0, 'Free-running speed as a multiple of wall-clock time '
+              '(0 = as fast as possible). Ignored in lock-step.', min=0.0, max=1000.0),
+        Param('lockstep', False, 'True when a Graph runner drives advance() itself (one '
+              'process, one executor); false to free-run on a wall-clock timer.',
+              read_only=True),
+        Param('wait_for_clock_subscribers', 0, 'Free-running only: hold time at zero until this '
+              'many subscribers listen to /clock (multi-process start-up over DDS).',
+              min=0, max=1000, read_only=True),
+    )
+
+    def __init__(self, node_name, **kwargs):
+        super().__init__(node_name, **kwargs)
+        self.sim_time_ns = 0
+        self._period_ns = int(round(self.params.publish_period * NS))
+        self._clock_pub = self.create_publisher(ClockMsg, '/clock', CLOCK_QOS)
+        self._wall_timer = None
+        self._waiting = self.params.wait_for_clock_subscribers > 0
+        if not self.params.lockstep:
+            self._start_free_running()
+
+    @property
+    def sim_time(self):
+        """Current simulated time in seconds."""
+        return self.sim_time_ns / NS
+
+    def stamp(self):
+        """Current simulated time as builtin_interfaces/Time, for message headers."""
+        return stamp_from_ns(self.sim_time_ns)
+
+    def _start_free_running(self):
+        rtf = self.params.real_time_factor
+        period = self.params.publish_period / rtf if rtf > 0 else 0.0
+        self._wall_timer = self.create_timer(
+            period, self._free_running_tick, clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    def on_params_changed(self, changed):
+        if 'real_time_factor' in changed and self._wall_timer is not None:
+            self.destroy_timer(self._wall_timer)
+            self._start_free_running()
+
+    def _free_running_tick(self):
+        if self._waiting:
+            if self._clock_pub.get_subscription_count() < self.params.wait_for_clock_subscribers:
+                return
+            self._waiting = False
+        self.advance()
+
+    def advance(self):
+        """Advance simulated time by one period, then publish ``/clock`` and state."""
+        self.advance_time(self._period_ns)
+        self.sim_time_ns += self._period_ns
+        self._clock_pub.publish(ClockMsg(clock=self.stamp()))
+        self.publish_state()
+
+    def advance_time(self, period_ns):
+        """Subclass hook: bring the world from ``sim_time_ns`` to ``sim_time_ns + period_ns``."""
+
+    def publish_state(self):
+        """Subclass hook: publish what the world looks like at ``sim_time_ns``."""

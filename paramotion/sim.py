@@ -1,0 +1,56 @@
+"""PyBullet simulation node base: the robot hardware stand-in that owns ``/clock``.
+
+Each :class:`SimulationNode` has its own PyBullet physics client (DIRECT, headless), so several
+simulations can live in one process. Every publish period it runs
+``round(publish_period / physics_dt)`` physics steps of ``physics_dt`` (:meth:`step_physics`),
+then publishes ``/clock`` and its state (:meth:`publish_state`).
+"""
+import pybullet
+from pybullet_utils.bullet_client import BulletClient
+
+from paramotion.clock import NS, ClockSourceNode
+from paramotion.node import Param
+
+
+class SimulationNode(ClockSourceNode):
+    """Base class of the PyBullet simulator nodes."""
+
+    PARAMS = ClockSourceNode.PARAMS + (
+        Param('physics_dt', 0.001, 'PyBullet time step in seconds.', min=1e-5, max=0.1,
+              read_only=True),
+        Param('gravity', -9.81, 'Gravity along world z in m/s^2 (REP 103: z up).',
+              min=-20.0, max=0.0, read_only=True),
+    )
+
+    def __init__(self, node_name, **kwargs):
+        super().__init__(node_name, **kwargs)
+        self.bullet = BulletClient(connection_mode=pybullet.DIRECT)
+        self.bullet.setGravity(0.0, 0.0, self.params.gravity)
+        self.bullet.setTimeStep(self.params.physics_dt)
+        self.substeps = max(1, int(round(self.params.publish_period / self.params.physics_dt)))
+
+    def check_params(self, values):
+        ratio = values['publish_period'] / values['physics_dt']
+        if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:
+            return (f"parameter 'publish_period' = {values['publish_period']} must be a whole "
+                    f"multiple of 'physics_dt' = {values['physics_dt']}")
+        return None
+
+    def advance_time(self, period_ns):
+        dt = self.params.physics_dt
+        for _ in range(self.substeps):
+            self.step_physics(dt)
+
+    def step_physics(self, dt):
+        """Subclass hook: apply commands/forces, then ``self.bullet.stepSimulation()``."""
+        self.bullet.stepSimulation()
+
+    def destroy_node(self):
+        try:
+            self.bullet.disconnect()
+        except Exception:  # already disconnected (e.g. destroyed twice)
+            pass
+        return super().destroy_node()
+
+
+__all__ = ['NS', 'SimulationNode']
