@@ -11,8 +11,12 @@ same results on a fast or a slow machine.
 import time
 
 import rclpy
-from rclpy.executors import (ExternalShutdownException, ShutdownException,
-                             SingleThreadedExecutor, TimeoutException)
+from rclpy.executors import (
+    ExternalShutdownException,
+    ShutdownException,
+    SingleThreadedExecutor,
+    TimeoutException,
+)
 
 from paramotion.clock import ClockSourceNode
 from paramotion.node import overrides_from_dict
@@ -29,11 +33,11 @@ class Graph:
         self.max_callbacks_per_drain = max_callbacks_per_drain
         self.callbacks_run = 0
 
-    def add(self, node_cls, *, name=None, namespace=None, remap=None, **params):
+    def add(self, node_cls, *, name=None, namespace=None, remappings=None, **params):
         """Create ``node_cls`` in this graph with parameter overrides ``params``.
 
-        ``name`` renames the node, ``namespace`` pushes it into a namespace and ``remap`` maps
-        topic names ``{'from': 'to'}``, as ``--ros-args -r`` would. Clock sources (simulators,
+        ``name`` renames the node, ``namespace`` pushes it into a namespace, ``remappings``
+        maps topic names ``{"from": "to"}`` as ``--ros-args -r`` would. Clock sources (simulators,
         players) are put in lock-step mode unless ``lockstep`` is given explicitly.
         """
         if isinstance(node_cls, type) and issubclass(node_cls, ClockSourceNode):
@@ -43,7 +47,7 @@ class Graph:
         cli = []
         if name:
             cli += ['-r', f'__node:={name}']
-        for src, dst in (remap or {}).items():
+        for src, dst in (remappings or {}).items():
             cli += ['-r', f'{src}:={dst}']
         if cli:
             kwargs['cli_args'] = ['--ros-args'] + cli

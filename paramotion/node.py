@@ -17,8 +17,13 @@ from types import SimpleNamespace
 from typing import Any, Optional
 
 import rclpy
-from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
-                                ParameterType, SetParametersResult)
+from rcl_interfaces.msg import (
+    FloatingPointRange,
+    IntegerRange,
+    ParameterDescriptor,
+    ParameterType,
+    SetParametersResult,
+)
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -67,7 +72,8 @@ class Param:
             read_only=self.read_only)
         if self.choices is not None:
             desc.additional_constraints = 'one of: ' + ', '.join(str(c) for c in self.choices)
-        elif self.ptype == Parameter.Type.DOUBLE and (self.min is not None or self.max is not None):
+        elif self.ptype == Parameter.Type.DOUBLE and (
+                self.min is not None or self.max is not None):
             # rclpy enforces descriptor ranges itself; +-inf stand for an open end.
             desc.floating_point_range = [FloatingPointRange(
                 from_value=-math.inf if self.min is None else float(self.min),
@@ -97,7 +103,8 @@ class Param:
             if isinstance(v, float) and math.isnan(v):
                 return f"parameter '{self.name}' = {value!r} is NaN; allowed: {self.allowed()}"
             if self.choices is not None and v not in self.choices:
-                return f"parameter '{self.name}' = {value!r} not allowed; allowed: {self.allowed()}"
+                return (f"parameter '{self.name}' = {value!r} not allowed; "
+                        f'allowed: {self.allowed()}')
             if isinstance(v, (int, float)) and not isinstance(v, bool):
                 if (self.min is not None and v < self.min) or \
                         (self.max is not None and v > self.max):

@@ -1,8 +1,13 @@
 """Translate between rosbag2 ``offered_qos_profiles`` YAML and rclpy QoS profiles."""
 import yaml
 from rclpy.duration import Duration
-from rclpy.qos import (DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile,
-                       ReliabilityPolicy)
+from rclpy.qos import (
+    DurabilityPolicy,
+    HistoryPolicy,
+    LivelinessPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+)
 
 
 def _policy(enum, value, default):

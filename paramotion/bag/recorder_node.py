@@ -1,4 +1,4 @@
-"""Bag recorder node: subscribes to topics and writes a rosbag2 MCAP bag (like ``ros2 bag record``).
+"""Bag recorder node: subscribes to topics and writes a rosbag2 MCAP bag (``ros2 bag record``).
 
 Messages are received serialised (no deserialisation cost) and stamped with the node's clock,
 which is sim time by default, as rosbag2 does with ``use_sim_time``. Subscriptions adapt their
