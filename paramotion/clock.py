@@ -41,6 +41,9 @@ class ClockSourceNode(ParamotionNode):
         Param('wait_for_clock_subscribers', 0, 'Free-running only: hold time at zero until this '
               'many subscribers listen to /clock (multi-process start-up over DDS).',
               min=0, max=1000, read_only=True),
+        Param('wait_for_matched', [''], "Free-running only: also hold time until this node's "
+              "publishers have these many matched subscribers, as 'topic:count' entries.",
+              read_only=True),
     )
 
     def __init__(self, node_name, **kwargs):
@@ -49,9 +52,18 @@ class ClockSourceNode(ParamotionNode):
         self._period_ns = int(round(self.params.publish_period * NS))
         self._clock_pub = self.create_publisher(ClockMsg, '/clock', CLOCK_QOS)
         self._wall_timer = None
-        self._waiting = self.params.wait_for_clock_subscribers > 0
+        self._waiting = (self.params.wait_for_clock_subscribers > 0
+                         or any(self.params.wait_for_matched))
         if not self.params.lockstep:
             self._start_free_running()
+
+    def check_params(self, values):
+        for entry in values['wait_for_matched']:
+            topic, sep, count = entry.rpartition(':')
+            if entry and (not sep or not topic or not count.isdigit()):
+                return (f"parameter 'wait_for_matched' entry {entry!r}: expected "
+                        "'topic:count' with a whole count")
+        return None
 
     @property
     def sim_time(self):
@@ -73,9 +85,23 @@ class ClockSourceNode(ParamotionNode):
             self.destroy_timer(self._wall_timer)
             self._start_free_running()
 
+    def _start_condition_met(self):
+        if self._clock_pub.get_subscription_count() < self.params.wait_for_clock_subscribers:
+            return False
+        counts = {}
+        for pub in self.publishers:
+            counts[pub.topic_name] = max(counts.get(pub.topic_name, 0),
+                                         pub.get_subscription_count())
+        for entry in self.params.wait_for_matched:
+            if entry:
+                topic, _, count = entry.rpartition(':')
+                if counts.get(topic, 0) < int(count):
+                    return False
+        return True
+
     def _free_running_tick(self):
         if self._waiting:
-            if self._clock_pub.get_subscription_count() < self.params.wait_for_clock_subscribers:
+            if not self._start_condition_met():
                 return
             self._waiting = False
         self.advance()

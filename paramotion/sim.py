@@ -30,6 +30,9 @@ class SimulationNode(ClockSourceNode):
         self.substeps = max(1, int(round(self.params.publish_period / self.params.physics_dt)))
 
     def check_params(self, values):
+        reason = super().check_params(values)
+        if reason:
+            return reason
         ratio = values['publish_period'] / values['physics_dt']
         if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:
             return (f"parameter 'publish_period' = {values['publish_period']} must be a whole "

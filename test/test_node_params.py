@@ -105,3 +105,11 @@ def test_graph_contexts_are_independent():
         assert a.context.ok() and b.context.ok()
     assert not a.context.ok() and not b.context.ok()
     assert not rclpy.ok()  # the default context was never touched
+
+
+def test_clock_source_start_condition_entries_validated():
+    with Graph() as graph:
+        with pytest.raises(ParameterError, match='wait_for_matched'):
+            graph.add(SmokeSimNode, wait_for_matched=['/smoke/ground_truth'])
+        sim = graph.add(SmokeSimNode, wait_for_matched=['/smoke/ground_truth:2'])
+        assert sim.params.wait_for_matched == ['/smoke/ground_truth:2']

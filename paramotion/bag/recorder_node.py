@@ -42,12 +42,13 @@ class BagRecorderNode(ParamotionNode):
     def discover(self):
         """Subscribe to every wanted topic that has a publisher and is not recorded yet.
 
-        ``/clock`` is subscribed last, once every other wanted topic is recorded: a simulator
-        waiting for its ``/clock`` subscribers then starts time only when nothing is missed.
+        ``/clock`` is subscribed last, once every other wanted topic is recorded and matched
+        with its publishers: a simulator waiting for its ``/clock`` subscribers then starts
+        time only when nothing will be missed.
         """
         found = self.get_topic_names_and_types()
         for topic, types in sorted(found, key=lambda item: item[0] == '/clock'):
-            if topic == '/clock' and self.wanted and set(self.missing_topics()) - {'/clock'}:
+            if topic == '/clock' and self.wanted and not self._others_matched():
                 continue
             if topic in self._subs or (self.wanted and topic not in self.wanted):
                 continue
@@ -59,6 +60,12 @@ class BagRecorderNode(ParamotionNode):
                 continue
             self.subscribe(topic, types[0], [i.qos_profile for i in infos])
         return sorted(self._subs)
+
+    def _others_matched(self):
+        if set(self.missing_topics()) - {'/clock'}:
+            return False
+        return all(sub.get_publisher_count() > 0 for topic, sub in self._subs.items()
+                   if topic != '/clock')
 
     def missing_topics(self):
         """Wanted topics not subscribed yet (no publisher seen)."""

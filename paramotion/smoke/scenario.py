@@ -83,7 +83,8 @@ def run_processes(bag_dir, duration, rtf, log_dir):
         # every other topic is found) and this watcher. DDS discovery takes ~2 s.
         sim = NodeProcess('paramotion.smoke.sim_node', params={
             'wall_x': d['wall_x'], 'start_x': d['start_x'], 'real_time_factor': float(rtf),
-            'cart_half_length': d['cart_half_length'], 'wait_for_clock_subscribers': 5},
+            'cart_half_length': d['cart_half_length'], 'wait_for_clock_subscribers': 5,
+            'wait_for_matched': ['/smoke/ground_truth:2']},
             log_path=log_dir / 'sim.log')
         procs.append(sim)
         done = wait_until(lambda: (executor.spin_once(timeout_sec=0.05),
