@@ -50,7 +50,8 @@ def _play(args):
     from paramotion.bag.player_node import BagPlayerNode
     params = {'bag': args.bag, 'topics': args.topics or [''], 'remap': args.remap or [''],
               'real_time_factor': args.rate, 'publish_period': args.clock_period,
-              'wait_for_clock_subscribers': args.wait_for_subscribers}
+              'wait_for_clock_subscribers': args.wait_for_subscribers,
+              'wait_for_matched': args.wait_for_matched or ['']}
     node = _spin_node(BagPlayerNode, params, until=lambda n: n.finished)
     print(f'played {node.published} messages from {args.bag}')
     return 0
@@ -159,6 +160,8 @@ def register(subparsers):
                       help='sim seconds per /clock tick (default 0.01)')
     play.add_argument('--wait-for-subscribers', type=int, default=0,
                       help='hold time until this many /clock subscribers are present')
+    play.add_argument('--wait-for-matched', nargs='*', metavar='TOPIC:N',
+                      help='hold time until these played topics have N matched subscribers')
     play.set_defaults(func=_play)
 
     info = sub.add_parser('info', help='summarise a bag (recovers damaged ones)',
