@@ -5,11 +5,38 @@ simulations can live in one process. Every publish period it runs
 ``round(publish_period / physics_dt)`` physics steps of ``physics_dt`` (:meth:`step_physics`),
 then publishes ``/clock`` and its state (:meth:`publish_state`).
 """
-import pybullet
-from pybullet_utils.bullet_client import BulletClient
+import ctypes
+import os
+import sys
+from contextlib import contextmanager
 
 from paramotion.clock import NS, ClockSourceNode
 from paramotion.node import Param
+
+
+@contextmanager
+def quiet_stdout():
+    """Silence C-level stdout (PyBullet prints its build time and argv[0] on start-up), which
+    would otherwise mix into scenario summaries and ``ros2 run`` output."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, 1)
+        yield
+    finally:
+        ctypes.CDLL(None).fflush(None)  # flush C stdio into /dev/null before restoring
+        os.dup2(saved, 1)
+        os.close(saved)
+        os.close(devnull)
+
+
+def bullet_client():
+    """A new headless (DIRECT) PyBullet client, without the start-up banner."""
+    with quiet_stdout():
+        import pybullet
+        from pybullet_utils.bullet_client import BulletClient
+        return BulletClient(connection_mode=pybullet.DIRECT)
 
 
 class SimulationNode(ClockSourceNode):
@@ -24,7 +51,7 @@ class SimulationNode(ClockSourceNode):
 
     def __init__(self, node_name, **kwargs):
         super().__init__(node_name, **kwargs)
-        self.bullet = BulletClient(connection_mode=pybullet.DIRECT)
+        self.bullet = bullet_client()
         self.bullet.setGravity(0.0, 0.0, self.params.gravity)
         self.bullet.setTimeStep(self.params.physics_dt)
         self.substeps = max(1, int(round(self.params.publish_period / self.params.physics_dt)))
@@ -56,4 +83,4 @@ class SimulationNode(ClockSourceNode):
         return super().destroy_node()
 
 
-__all__ = ['NS', 'SimulationNode']
+__all__ = ['NS', 'SimulationNode', 'bullet_client', 'quiet_stdout']
