@@ -11,6 +11,7 @@ import numpy as np
 from geometry_msgs.msg import PoseStamped
 from sensor_msgs.msg import Range
 
+from paramotion.messages import range_msg
 from paramotion.node import Param, ParamotionNode, run_node
 from paramotion.qos import SENSOR_QOS
 from paramotion.range_sensing import rep117_reading
@@ -68,15 +69,8 @@ class SmokeRangeSensorNode(ParamotionNode):
                                  fault=fault)
         if drop:
             return
-        msg = Range()
-        msg.header.stamp = self.get_clock().now().to_msg()
-        msg.header.frame_id = p.frame_id
-        msg.radiation_type = Range.ULTRASOUND
-        msg.field_of_view = float(p.field_of_view)
-        msg.min_range = float(p.min_range)
-        msg.max_range = float(p.max_range)
-        msg.range = float(reading)
-        self.pub.publish(msg)
+        self.pub.publish(range_msg(self.get_clock().now().to_msg(), p.frame_id, reading,
+                                   p.min_range, p.max_range, p.field_of_view))
 
 
 def main(args=None):

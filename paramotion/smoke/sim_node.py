@@ -6,6 +6,7 @@ with a velocity motor of limited force; publishes the cart's true pose on
 """
 from geometry_msgs.msg import PoseStamped, Twist
 
+from paramotion.messages import pose_stamped
 from paramotion.node import Param, run_node
 from paramotion.qos import SENSOR_QOS, STATE_QOS
 from paramotion.sim import SimulationNode
@@ -60,13 +61,7 @@ class SmokeSimNode(SimulationNode):
         self.bullet.stepSimulation()
 
     def publish_state(self):
-        msg = PoseStamped()
-        msg.header.stamp = self.stamp()
-        msg.header.frame_id = 'map'
-        msg.pose.position.x = self.cart_x
-        msg.pose.position.z = 0.2
-        msg.pose.orientation.w = 1.0
-        self.truth_pub.publish(msg)
+        self.truth_pub.publish(pose_stamped(self.stamp(), 'map', (self.cart_x, 0.0, 0.2)))
 
 
 def main(args=None):
