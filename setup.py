@@ -19,6 +19,7 @@ NODES = [
     # cable_robot_pkg FAST (issue 5)
     # cable_robot_pkg workspace (issue 6)
     # Gough-Stewart simplified Voronoi planner (issue 7)
+    'voronoi_planner = paramotion.voronoi.planner_node:main',
 ]
 
 setup(

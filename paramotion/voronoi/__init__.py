@@ -1,0 +1,18 @@
+"""Simplified Voronoi diagrams for motion planning of quadratically-solvable Gough-Stewart
+platforms (Vaca, Aranda & Thomas).
+
+Modules, in reading order:
+
+* :mod:`~paramotion.voronoi.predicates` - determinant predicates, pure-condition and
+  basic-contact AND-OR trees, their fusion (sections 1-3);
+* :mod:`~paramotion.voronoi.distance` - the measure rho (min = AND, max = OR, - = NOT) and the
+  active leaf (section 4);
+* :mod:`~paramotion.voronoi.planar` - the planar robot and scene of section 6;
+* :mod:`~paramotion.voronoi.diagram` - the simplified Voronoi diagram per orientation slice
+  and its roadmap across orientations (section 5);
+* :mod:`~paramotion.voronoi.planner` - retraction onto the diagram, search, dense verification;
+* :mod:`~paramotion.voronoi.spatial321` - the 3-2-1 platform of Fig. 1 in a polyhedral scene;
+* :mod:`~paramotion.voronoi.figures` - Figs. 2 and 3 as images.
+
+Only :mod:`~paramotion.voronoi.planner_node` imports rclpy.
+"""

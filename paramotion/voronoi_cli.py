@@ -1,0 +1,194 @@
+"""``paramotion voronoi``: simplified Voronoi diagram planning (Vaca, Aranda & Thomas).
+
+* ``plan``: the planar platform of section 6 (or a scene file); writes ``result.json``,
+  ``figure2.png`` (Fig. 2 (a)-(f) at phi = pi/4) and ``figure3.png`` (Fig. 3 with the path).
+* ``plan321``: the spatial 3-2-1 platform of Fig. 1 in a polyhedral scene; writes
+  ``result.json`` and ``figure321.png``.
+* ``bench``: median planar query time and rho evaluations per second.
+"""
+import json
+import math
+import statistics
+import time
+from pathlib import Path
+
+import numpy as np
+
+from paramotion.errors import UserError
+
+_STAGES = ('slices', 'roadmap', 'retract', 'search', 'verify')
+
+
+def register(subparsers):
+    """Add ``paramotion voronoi {plan,plan321,bench}``."""
+    parser = subparsers.add_parser(
+        'voronoi', help='simplified Voronoi diagram planner (Gough-Stewart, Vaca et al.)',
+        description='Motion planning on simplified Voronoi diagrams of determinant predicates.')
+    sub = parser.add_subparsers(dest='voronoi_command', metavar='ACTION')
+    sub.required = True
+
+    p = sub.add_parser('plan', help='plan for the planar platform of section 6',
+                       description='Plan a singularity- and collision-free path for the '
+                       'planar platform; write DIR/result.json, DIR/figure2.png and '
+                       'DIR/figure3.png.')
+    p.add_argument('--start', nargs=3, type=float, required=True, metavar=('X', 'Y', 'PHI_DEG'))
+    p.add_argument('--goal', nargs=3, type=float, required=True, metavar=('X', 'Y', 'PHI_DEG'))
+    p.add_argument('--scene', help='planar scene JSON (default: the paper scene)')
+    p.add_argument('--out', required=True, help='output directory')
+    p.add_argument('--grid', type=float, default=1.0, help='grid spacing in x, y (units)')
+    p.add_argument('--slice-deg', type=float, default=2.5, help='orientation slice spacing')
+    p.add_argument('--no-figures', action='store_true', help='write result.json only')
+    p.set_defaults(func=_plan)
+
+    p = sub.add_parser('plan321', help='plan for the spatial 3-2-1 platform of Fig. 1',
+                       description='Plan between two poses of the 3-2-1 platform among '
+                       'polyhedral obstacles (sampled roadmap on the simplified Voronoi '
+                       'diagram); write DIR/result.json and DIR/figure321.png.')
+    p.add_argument('--start', nargs=6, type=float, metavar=('X', 'Y', 'Z', 'ROLL', 'PITCH',
+                                                             'YAW'),
+                   help='start pose, m and deg (default: the demo start)')
+    p.add_argument('--goal', nargs=6, type=float, metavar=('X', 'Y', 'Z', 'ROLL', 'PITCH',
+                                                            'YAW'),
+                   help='goal pose, m and deg (default: the demo goal)')
+    p.add_argument('--scene', help='spatial scene JSON (default: the demo scene)')
+    p.add_argument('--samples', type=int, default=3000, help='roadmap samples')
+    p.add_argument('--seed', type=int, default=0, help='random seed')
+    p.add_argument('--out', required=True, help='output directory')
+    p.set_defaults(func=_plan321)
+
+    p = sub.add_parser('bench', help='benchmark query time and rho evaluations per second')
+    p.add_argument('--repeats', type=int, default=5)
+    p.add_argument('--configs', type=int, default=1_000_000,
+                   help='configurations per rho evaluation batch')
+    p.set_defaults(func=_bench)
+
+
+def _check_out(out):
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise UserError(f'--out {out}: exists and is not a directory')
+    return out
+
+
+def _plan(args):
+    from tqdm import tqdm
+
+    from paramotion.voronoi.planar import load_scene, paper_model
+    from paramotion.voronoi.planner import VoronoiPlanner, validate_configuration
+
+    if not (args.grid > 0 and math.isfinite(args.grid)):
+        raise UserError(f'--grid {args.grid}: must be a positive number')
+    if not (0 < args.slice_deg <= 45):
+        raise UserError(f'--slice-deg {args.slice_deg}: must be in (0, 45]')
+    out = _check_out(args.out)
+    model = load_scene(args.scene) if args.scene else paper_model()
+    start = np.array([args.start[0], args.start[1], math.radians(args.start[2])])
+    goal = np.array([args.goal[0], args.goal[1], math.radians(args.goal[2])])
+    validate_configuration(model, start, 'start')   # refuse bad input before writing
+    validate_configuration(model, goal, 'goal')
+    planner = VoronoiPlanner(model, h=args.grid, dphi_deg=args.slice_deg)
+    bar = tqdm(total=len(_STAGES), desc='voronoi plan', unit='stage', leave=False)
+
+    def progress(stage):
+        bar.set_postfix_str(stage)
+        bar.update(1)
+
+    res = planner.plan(start, goal, progress=progress)
+    bar.close()
+    out.mkdir(parents=True, exist_ok=True)
+    doc = {
+        'status': res.status,
+        'reason': res.reason,
+        'start': start.tolist(),
+        'goal': goal.tolist(),
+        'scene': args.scene or 'paper (section 6)',
+        'path': np.round(res.path, 9).tolist(),
+        'path_note': 'configurations [x, y, phi_rad]; phi is continuous (unwrapped); '
+                     'consecutive points differ by <= 0.05 units and <= 0.01 rad and every '
+                     'point has rho > 0 with no sign change of a pure-condition determinant',
+        'min_rho': None if math.isnan(res.min_rho) else res.min_rho,
+        'max_rho_step': None if math.isnan(res.max_rho_step) else res.max_rho_step,
+        'planning_time_s': res.planning_time,
+        'grid': args.grid,
+        'slice_deg': args.slice_deg,
+        'stats': {k: (float(v) if isinstance(v, (np.floating, float)) else v)
+                  for k, v in res.stats.items()},
+    }
+    (out / 'result.json').write_text(_dump(doc))
+    if not args.no_figures:
+        from paramotion.voronoi.figures import figure2, figure3
+        figure2(model, out / 'figure2.png')
+        figure3(model, out / 'figure3.png', res.path if res.found else None)
+    if res.found:
+        print(f'path found: {len(res.path)} configurations, min rho {res.min_rho:.4g}, '
+              f'planning time {res.planning_time:.2f} s -> {out}')
+        return 0
+    print(f'no path: {res.reason} (planning time {res.planning_time:.2f} s) -> {out}')
+    return 1
+
+
+def _dump(doc):
+    """JSON with one path point per line (readable, and diffs stay small)."""
+    path = doc.pop('path')
+    text = json.dumps(doc, indent=1)
+    points = ',\n  '.join(json.dumps(p) for p in path)
+    return text[:-2] + ',\n "path": [\n  ' + points + '\n ]\n}\n'
+
+
+def _plan321(args):
+    from paramotion.voronoi.spatial321 import run_cli
+    return run_cli(args, _check_out(args.out))
+
+
+def _bench(args):
+    from paramotion.voronoi.planar import PAPER_GOAL, PAPER_START, paper_model
+    from paramotion.voronoi.planner import VoronoiPlanner
+
+    if args.repeats < 1 or args.configs < 1000:
+        raise UserError('--repeats must be >= 1 and --configs >= 1000')
+    model = paper_model()
+    rng = np.random.default_rng(0)
+    d = model.domain
+    q = rng.uniform([d.x[0], d.y[0], d.phi[0]], [d.x[1], d.y[1], d.phi[1]], (args.configs, 3))
+    rates, rates_active = [], []
+    for _ in range(args.repeats):
+        t = time.perf_counter()
+        model.rho(q)
+        rates.append(args.configs / (time.perf_counter() - t))
+        t = time.perf_counter()
+        model.evaluate(q)
+        rates_active.append(args.configs / (time.perf_counter() - t))
+    print(f'planar rho (P1 AND P2, {model.programs["total"].n_leaves} signed leaves, '
+          f'{len(model.programs["total"].keys)} determinants): median '
+          f'{statistics.median(rates):.3g} configurations/s (target > 1e6)')
+    print(f'planar rho + active leaf: median {statistics.median(rates_active):.3g} '
+          'configurations/s')
+    cold, warm = [], []
+    for _ in range(args.repeats):
+        planner = VoronoiPlanner(model)
+        t = time.perf_counter()
+        res = planner.plan(PAPER_START, PAPER_GOAL)
+        cold.append(time.perf_counter() - t)
+        if not res.found:
+            raise RuntimeError('paper query not solved')
+        t = time.perf_counter()
+        planner.plan(PAPER_START, PAPER_GOAL)
+        warm.append(time.perf_counter() - t)
+    print(f'paper planar query (35,-20,90deg) -> (-10,-15,-90deg): median '
+          f'{statistics.median(cold):.2f} s cold (slices computed), '
+          f'{statistics.median(warm):.2f} s warm (slices cached)')
+    try:
+        from paramotion.voronoi.spatial321 import demo_model
+    except ImportError:
+        return 0
+    sm = demo_model()
+    n = max(1000, args.configs // 10)
+    poses = sm.sample(np.random.default_rng(1), n)
+    srates = []
+    for _ in range(args.repeats):
+        t = time.perf_counter()
+        sm.rho(poses)
+        srates.append(n / (time.perf_counter() - t))
+    print(f'spatial 3-2-1 rho ({len(sm.program.keys)} 4x4 determinants): median '
+          f'{statistics.median(srates):.3g} configurations/s')
+    return 0

@@ -1,0 +1,332 @@
+"""Planar planner on the simplified Voronoi diagram: the paper's query, "no path" answers,
+bad input, completeness against a flood fill of the sampled grid, and the CLI.
+
+Paths are checked by an independent checker (direct geometry, not the planner's rho): every
+0.01 rad / 0.05 units along straight interpolation, P3 stays on one side of the base line,
+P2-P3-P4 never become collinear, and the platform crosses neither the base nor the boundary.
+"""
+import json
+import math
+
+import numpy as np
+import pytest
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+from paramotion.cli import main as cli_main
+from paramotion.errors import UserError
+from paramotion.voronoi.diagram import grid_axes, slice_fields
+from paramotion.voronoi.planar import (
+    PAPER_GOAL,
+    PAPER_START,
+    Domain,
+    load_scene,
+    paper_model,
+    planar_model,
+)
+from paramotion.voronoi.planner import VoronoiPlanner
+
+SQUARE = np.array([[-25, 40], [-25, -40], [55, -40], [55, 40]], dtype=float)
+
+
+def _cross2(a, b):
+    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+
+
+def _segments_intersect(p, r, q, s):
+    """Closed segments p->p+r and q->q+s intersect (including touching): vectorised, by the
+    parametric method (independent of the determinant predicates)."""
+    rxs = _cross2(r, s)
+    qp = q - p
+    parallel = np.abs(rxs) < 1e-12
+    with np.errstate(divide='ignore', invalid='ignore'):
+        t = _cross2(qp, s) / rxs
+        u = _cross2(qp, r) / rxs
+    hit = ~parallel & (t >= 0) & (t <= 1) & (u >= 0) & (u <= 1)
+    # Collinear overlap.
+    col = parallel & (np.abs(_cross2(qp, r)) < 1e-12)
+    rr = np.maximum(np.sum(r * r, axis=-1), 1e-300)
+    t0 = np.sum(qp * r, axis=-1) / rr
+    t1 = t0 + np.sum(s * r, axis=-1) / rr
+    hit |= col & (np.maximum(t0, t1) >= 0) & (np.minimum(t0, t1) <= 1)
+    return hit
+
+
+def _bad_samples(q, base, length, boundary, obstacles):
+    """Per-sample failure flags and the reasons, by direct geometry (see independent_check).
+    Singularity sides are returned as sign arrays for the caller to compare."""
+    p1, p2 = np.asarray(base[0], dtype=float), np.asarray(base[1], dtype=float)
+    p3 = q[:, :2]
+    dirv = length * np.stack([np.cos(q[:, 2]), np.sin(q[:, 2])], axis=1)
+    p4 = p3 + dirv
+    side = np.sign(_cross2(p2 - p1, p3 - p1))
+    coll = np.sign(_cross2(p3 - p2, p4 - p2))
+    edges = [(p1, p2)]
+    if boundary is not None and len(boundary):
+        edges += [(boundary[i], boundary[(i + 1) % len(boundary)])
+                  for i in range(len(boundary))]
+    for poly in obstacles:
+        poly = np.asarray(poly, dtype=float)
+        edges += [(poly[i], poly[(i + 1) % len(poly)]) for i in range(len(poly))]
+    hit = np.zeros(len(q), dtype=bool)
+    lo, hi = np.minimum(p3, p4), np.maximum(p3, p4)
+    for a, b in edges:
+        a = np.asarray(a, dtype=float)
+        b = np.asarray(b, dtype=float)
+        # Bounding boxes first (cheap), the exact test only where they overlap.
+        near = np.all((lo <= np.maximum(a, b) + 1e-9) & (hi >= np.minimum(a, b) - 1e-9),
+                      axis=1)
+        i = np.flatnonzero(near)
+        hit[i] |= _segments_intersect(np.broadcast_to(a, (len(i), 2)),
+                                      np.broadcast_to(b - a, (len(i), 2)), p3[i], dirv[i])
+    return hit, side, coll
+
+
+def _resample(a, b, step_xy, step_phi):
+    """Samples on the straight segments a[i] -> b[i] (both ends included) and their owner."""
+    d = b - a
+    n = np.maximum(1, np.ceil(np.maximum(np.hypot(d[:, 0], d[:, 1]) / step_xy,
+                                         np.abs(d[:, 2]) / step_phi)).astype(int))
+    owner = np.repeat(np.arange(len(d)), n + 1)
+    k = np.arange(owner.size) - np.repeat(np.cumsum(n + 1) - (n + 1), n + 1)
+    t = k / n[owner]
+    return a[owner] + t[:, None] * d[owner], owner
+
+
+def bad_segments(a, b, base=((0.0, 0.0), (15.0, 0.0)), length=10.0, boundary=SQUARE,
+                 obstacles=(), step_xy=0.05, step_phi=0.01):
+    """Which straight segments a[i] -> b[i] in configuration space are not free: checked
+    every step_xy / step_phi by direct geometry (closed-segment intersection, sides of the
+    singular lines), independently of the determinant predicates."""
+    q, owner = _resample(np.asarray(a, dtype=float), np.asarray(b, dtype=float),
+                         step_xy, step_phi)
+    hit, side, coll = _bad_samples(q, base, length, boundary, obstacles)
+    first = np.r_[0, np.flatnonzero(np.diff(owner)) + 1]
+    first_of = first[owner]
+    bad = hit | (side == 0) | (coll == 0) | (side != side[first_of]) | (coll != coll[first_of])
+    out = np.zeros(len(a), dtype=bool)
+    out[owner[bad]] = True
+    return out
+
+
+def independent_check(path, base=((0.0, 0.0), (15.0, 0.0)), length=10.0, boundary=SQUARE,
+                      obstacles=(), step_xy=0.05, step_phi=0.01):
+    """Densely re-sample ``path`` and check it by direct geometry; returns a failure text or
+    None."""
+    path = np.asarray(path, dtype=float)
+    q, _ = _resample(path[:-1], path[1:], step_xy, step_phi)
+    hit, side, coll = _bad_samples(q, base, length, boundary, obstacles)
+    if np.any(side == 0) or np.any(side != side[0]):
+        return 'P3 reaches or crosses the base line'
+    if np.any(coll == 0) or np.any(coll != coll[0]):
+        return 'P2, P3, P4 become collinear'
+    if hit.any():
+        return f'platform meets an obstacle segment at {q[hit][0].tolist()}'
+    return None
+
+
+@pytest.fixture(scope='module')
+def paper_planner():
+    return VoronoiPlanner(paper_model())
+
+
+def test_paper_query_is_solved_and_verified_independently(paper_planner):
+    res = paper_planner.plan(PAPER_START, PAPER_GOAL)
+    assert res.found, res.reason
+    path = res.path
+    np.testing.assert_allclose(path[0], PAPER_START)
+    assert np.allclose(path[-1, :2], PAPER_GOAL[:2])
+    assert math.isclose(math.remainder(path[-1, 2] - PAPER_GOAL[2], 2 * math.pi), 0,
+                        abs_tol=1e-9)
+    steps = np.abs(np.diff(path, axis=0))
+    assert np.all(np.hypot(steps[:, 0], steps[:, 1]) <= 0.05 + 1e-9)
+    assert np.all(steps[:, 2] <= 0.01 + 1e-9)
+    assert independent_check(path) is None
+    # The path keeps clear of the obstacles: rho is far above its change per step.
+    assert res.min_rho > 10 * res.max_rho_step
+    assert res.stats['diagram_vertices'] < 0.25 * res.stats['free_vertices']
+
+
+def test_independent_checker_detects_a_bad_path():
+    # Straight line from start to goal in configuration space passes through the base.
+    bad = np.array([PAPER_START, (10.0, -5.0, 1.2), PAPER_GOAL])
+    assert independent_check(bad) is not None
+    assert 'base line' in independent_check(np.array([PAPER_START, (35, 20, 1.5)]))
+
+
+def test_query_across_the_base_line_singularity_answers_no_path_at_once(paper_planner):
+    res = paper_planner.plan(PAPER_START, (-10.0, 15.0, -math.pi / 2))
+    assert res.status == 'no_path'
+    assert '[p1 p2 p3]' in res.reason
+    assert 'slices' not in res.stats          # decided before any roadmap was built
+
+
+def test_query_into_a_disconnected_region_answers_no_path(paper_planner):
+    # Goal outside the boundary square (free for P2, as in the paper) in the same singularity
+    # cell: only the roadmap search can tell that the boundary separates them.
+    goal = (-28.0, -20.0, -math.pi / 2)
+    assert paper_planner.model.rho(np.array(goal)) > 0
+    res = paper_planner.plan(PAPER_START, goal)
+    assert res.status == 'no_path', res.reason
+    assert 'slices' in res.stats
+
+
+@pytest.mark.parametrize('q, words', [
+    ((52.0, 0.5, 0.0), 'boundary edge P7P8'),          # platform through the right wall
+    ((20.0, 0.0, 1.0), 'Delta(1,2,3)'),                # P3 on the base line
+    ((25.0, 10.0, math.pi / 4), 'Delta(2,3,4)'),       # P2, P3, P4 collinear
+    ((5.0, -3.0, math.pi / 2), 'crosses base P1P2'),   # platform through the base
+    ((70.0, 0.0, 0.0), 'outside the planning domain'),
+    ((float('nan'), 0.0, 0.0), 'finite'),
+])
+def test_bad_start_or_goal_names_the_failing_predicate(paper_planner, q, words):
+    with pytest.raises(UserError, match='start') as err:
+        paper_planner.plan(q, PAPER_GOAL)
+    assert words in str(err.value)
+    with pytest.raises(UserError, match='goal') as err:
+        paper_planner.plan(PAPER_START, q)
+    assert words in str(err.value)
+
+
+def _reference_components(fields, obstacles):
+    """Connected components of the sampled grid: free vertices joined by grid edges
+    (8-neighbours in a slice, same x, y in the next slice, periodic in phi) that pass the
+    independent dense check - the reference for resolution completeness."""
+    shape = fields.rho.shape
+    idx = np.arange(fields.rho.size).reshape(shape)
+    pos = np.stack(np.meshgrid(fields.phis, fields.ys, fields.xs, indexing='ij'), axis=-1)
+    pos = pos[..., ::-1]                                    # (x, y, phi)
+    free = fields.free
+    us, vs = [], []
+    pairs = []
+    for dy, dx in ((0, 1), (1, 0), (1, 1), (1, -1)):
+        ya, yb = slice(max(0, -dy), shape[1] - max(0, dy)), slice(max(0, dy),
+                                                                 shape[1] - max(0, -dy))
+        xa, xb = slice(max(0, -dx), shape[2] - max(0, dx)), slice(max(0, dx),
+                                                                 shape[2] - max(0, -dx))
+        pairs.append(((slice(None), ya, xa), (slice(None), yb, xb), 0.0))
+    pairs.append(((slice(0, -1),), (slice(1, None),), 0.0))
+    pairs.append(((slice(-1, None),), (slice(0, 1),), 2 * np.pi))
+    for sa, sb, wrap in pairs:
+        ok = free[sa] & free[sb]
+        u, v = idx[sa][ok], idx[sb][ok]
+        a = pos.reshape(-1, 3)[u]
+        b = pos.reshape(-1, 3)[v].copy()
+        b[:, 2] += wrap
+        good = ~bad_segments(a, b, obstacles=obstacles)
+        us.append(u[good])
+        vs.append(v[good])
+    u, v = np.concatenate(us), np.concatenate(vs)
+    graph = coo_matrix((np.ones(len(u)), (u, v)), shape=(idx.size, idx.size))
+    _, labels = connected_components(graph, directed=False)
+    return labels.reshape(shape)
+
+
+@pytest.mark.parametrize('seed', [7, 11])
+def test_planner_is_complete_on_the_sampled_grid_in_an_unseen_scene(seed):
+    """Random convex obstacles: the planner finds a path between two grid vertices exactly
+    when the sampled grid connects them through edges that pass independent dense checking."""
+    rng = np.random.default_rng(seed)
+    obstacles = []
+    for _ in range(3):
+        c = rng.uniform([-15, -30], [45, -8])
+        ang = np.sort(rng.uniform(0, 2 * np.pi, 4))
+        obstacles.append([tuple(c + rng.uniform(3, 6) * np.array([np.cos(a), np.sin(a)]))
+                          for a in ang])
+    model = planar_model(((0.0, 0.0), (15.0, 0.0)), 10.0,
+                          ((-25.0, 40.0), (-25.0, -40.0), (55.0, -40.0), (55.0, 40.0)),
+                          obstacles, Domain())
+    planner = VoronoiPlanner(model, h=3.0, dphi_deg=15.0)
+    fields = planner.base_fields
+    labels = _reference_components(fields, obstacles)
+    free_idx = np.argwhere(fields.free)
+    lab_of = labels[tuple(free_idx.T)]
+    cell_of = fields.cell[tuple(free_idx.T)]
+    outcomes = set()
+    for trial in range(18):
+        a = free_idx[rng.integers(len(free_idx))]
+        same_cell = cell_of == fields.cell[tuple(a)]
+        same_comp = lab_of == labels[tuple(a)]
+        # Mix goal choices: anywhere; same component; same singularity cell but another
+        # component (only a search over the roadmap can answer those).
+        pool = [np.ones_like(same_cell), same_comp, same_cell & ~same_comp][trial % 3]
+        if not pool.any():
+            pool = np.ones_like(same_cell)
+        b = free_idx[rng.choice(np.flatnonzero(pool))]
+        qa = (fields.xs[a[2]], fields.ys[a[1]], fields.phis[a[0]])
+        qb = (fields.xs[b[2]], fields.ys[b[1]], fields.phis[b[0]])
+        res = planner.plan(qa, qb)
+        connected = labels[tuple(a)] == labels[tuple(b)]
+        assert res.found == connected, (qa, qb, res.reason)
+        # Kinds of answer: path, no path by the singularity-cell certificate, no path after
+        # a roadmap search (a separating obstacle).
+        outcomes.add('path' if res.found else
+                     'searched' if 'slices' in res.stats else 'certificate')
+        if res.found:
+            assert independent_check(res.path, obstacles=obstacles) is None
+    assert outcomes == {'path', 'searched', 'certificate'}
+
+
+def test_scene_file_errors_are_one_line(tmp_path):
+    bad = tmp_path / 'bad.json'
+    bad.write_text('{"obstacles": [[[0, 0], [4, 0], [4, 4], [2, 1], [0, 4]]]}')
+    with pytest.raises(UserError, match='convex'):
+        load_scene(bad)
+    bad.write_text('{"platform_length": -1}')
+    with pytest.raises(UserError, match='platform_length'):
+        load_scene(bad)
+    bad.write_text('{"base": [[0, 0]]')
+    with pytest.raises(UserError, match='not valid JSON'):
+        load_scene(bad)
+    with pytest.raises(UserError, match='cannot read'):
+        load_scene(tmp_path / 'missing.json')
+
+
+def test_cli_plan_writes_result_and_figures(tmp_path, capsys):
+    scene = tmp_path / 'scene.json'
+    scene.write_text(json.dumps({'obstacles': [[[30, 10], [40, 10], [40, 20], [30, 20]]]}))
+    out = tmp_path / 'out'
+    code = cli_main(['voronoi', 'plan', '--start', '35', '-20', '90', '--goal', '-10', '-15',
+                     '-90', '--scene', str(scene), '--out', str(out), '--grid', '2',
+                     '--slice-deg', '5'])
+    assert code == 0
+    doc = json.loads((out / 'result.json').read_text())
+    assert doc['status'] == 'ok' and doc['min_rho'] > 0 and doc['planning_time_s'] > 0
+    assert independent_check(np.array(doc['path']),
+                             obstacles=[[[30, 10], [40, 10], [40, 20], [30, 20]]]) is None
+    for name in ('figure2.png', 'figure3.png'):
+        assert (out / name).read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+
+
+def test_cli_plan_refuses_bad_input_without_writing(tmp_path, capsys):
+    out = tmp_path / 'never'
+    code = cli_main(['voronoi', 'plan', '--start', '20', '0', '10', '--goal', '-10', '-15',
+                     '-90', '--out', str(out)])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert 'Delta(1,2,3)' in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def test_fields_match_pointwise_rho():
+    model = paper_model()
+    xs, ys = grid_axes(model.domain, 5.0)
+    f = slice_fields(model, np.array([0.3, 2.0]), xs, ys)
+    X, Y = np.meshgrid(xs, ys)
+    q = np.stack([X, Y, np.full_like(X, 2.0)], axis=-1)
+    np.testing.assert_allclose(f.rho[1], model.rho(q))
+
+
+def test_paper_query_in_the_exact_fig3_domain(tmp_path):
+    """Fig. 3's region, phi in [-pi/2, pi/2] (not periodic): the path stays inside it."""
+    scene = tmp_path / 'fig3.json'
+    scene.write_text(json.dumps({'domain': {'x': [-30, 60], 'y': [-45, 45],
+                                            'phi_deg': [-90, 90]}}))
+    model = load_scene(scene)
+    assert not model.domain.periodic
+    res = VoronoiPlanner(model).plan(PAPER_START, PAPER_GOAL)
+    assert res.found, res.reason
+    assert res.path[:, 2].min() >= -math.pi / 2 - 1e-9
+    assert res.path[:, 2].max() <= math.pi / 2 + 1e-9
+    np.testing.assert_allclose(res.path[-1], PAPER_GOAL, atol=1e-9)
+    assert independent_check(res.path) is None
