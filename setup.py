@@ -18,6 +18,7 @@ NODES = [
     # climber_pkg (issue 4)
     # cable_robot_pkg FAST (issue 5)
     # cable_robot_pkg workspace (issue 6)
+    'workspace_monitor = cable_robot_pkg.workspace_monitor_node:main',
     # Gough-Stewart simplified Voronoi planner (issue 7)
     'voronoi_planner = paramotion.voronoi.planner_node:main',
 ]
