@@ -8,6 +8,8 @@ the new time and by the messages published in response, until nothing is left). 
 nothing waits on the wall clock, a scenario runs as fast as the machine allows and produces the
 same results on a fast or a slow machine.
 """
+import os
+import random
 import time
 
 import rclpy
@@ -22,10 +24,28 @@ from paramotion.clock import ClockSourceNode
 from paramotion.node import overrides_from_dict
 
 
+def private_domain_id():
+    """DDS domain for a one-process run: ``ROS_DOMAIN_ID`` if the user set it (to watch the run
+    live), else a random one in 102..200 with localhost-only discovery, so that other graphs on
+    the machine (a free-running simulator's ``/clock`` on the default domain 0, another
+    scenario) can never leak into this run's simulated time."""
+    env = os.environ.get('ROS_DOMAIN_ID', '').strip()
+    if env.isdigit():
+        return int(env)
+    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    return random.SystemRandom().randint(102, 200)
+
+
 class Graph:
-    """A set of nodes sharing one context and one executor. Use as a context manager."""
+    """A set of nodes sharing one context and one executor. Use as a context manager.
+
+    ``domain_id`` defaults to :func:`private_domain_id`.
+    """
 
     def __init__(self, domain_id=None, max_callbacks_per_drain=200_000):
+        if domain_id is None:
+            domain_id = private_domain_id()
+        self.domain_id = domain_id
         self.context = rclpy.Context()
         rclpy.init(context=self.context, domain_id=domain_id)
         self.executor = SingleThreadedExecutor(context=self.context)

@@ -24,6 +24,7 @@ from rcl_interfaces.msg import (
     ParameterType,
     SetParametersResult,
 )
+from rclpy._rclpy_pybind11 import RCLError
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -214,6 +215,11 @@ def run_node(node_cls, args=None):
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except RCLError:
+        # Ctrl-C shut the context down while a callback was publishing: a clean stop, not a
+        # crash. Any other RCL error (context still valid) is real and re-raised.
+        if rclpy.ok():
+            raise
     except ParameterError as exc:
         print(f'error: {exc}', file=sys.stderr)
         sys.exit(2)

@@ -85,3 +85,12 @@ def test_node_renaming_and_topic_remapping():
         assert sensor.get_name() == 'front_sonar'
         names = [n for n, _ in sensor.get_topic_names_and_types()]
         assert '/front/range' in names and '/smoke/range' not in names
+
+
+def test_graph_uses_private_domain_unless_user_sets_one(monkeypatch):
+    from paramotion.graph import private_domain_id
+    monkeypatch.setenv('ROS_DOMAIN_ID', '42')
+    assert private_domain_id() == 42
+    monkeypatch.delenv('ROS_DOMAIN_ID')
+    ids = {private_domain_id() for _ in range(20)}
+    assert all(102 <= i <= 200 for i in ids) and len(ids) > 1
