@@ -16,6 +16,9 @@ NODES = [
     'bag_player = paramotion.bag.player_node:main',
     # coverage_pkg (issue 3)
     # climber_pkg (issue 4)
+    'climber_sim = climber_pkg.sim_node:main',
+    'climber_ultrasonic = climber_pkg.ultrasonic_node:main',
+    'climber_planner = climber_pkg.planner_node:main',
     # cable_robot_pkg FAST (issue 5)
     # cable_robot_pkg workspace (issue 6)
     'workspace_monitor = cable_robot_pkg.workspace_monitor_node:main',

@@ -1,0 +1,131 @@
+"""The climbing graph in one executor: PyBullet sim + two ultrasonic triplets + planner.
+
+An integration test climbs a short curved, tapering structure never seen before to its top;
+others check safe refusals inside the graph, the command line's input validation, the node
+parameters and the structure-file validation.
+"""
+import json
+import math
+
+import numpy as np
+import pytest
+
+from climber_pkg.robot import load_robot_config
+from climber_pkg.scenario import run_climb
+from climber_pkg.trunk import Trunk
+from paramotion.bag.reader import bag_info
+from paramotion.cli import main as cli_main
+from paramotion.errors import ParameterError, UserError
+
+ROBOT = load_robot_config()
+
+
+def write_trunk(path, centerline, radius, name='t'):
+    path.write_text(json.dumps({'name': name, 'units': 'm', 'centerline': centerline,
+                                'radius': radius}))
+    return path
+
+
+def test_graph_climbs_short_curved_trunk_to_the_top(tmp_path):
+    z = np.linspace(0.0, 1.9, 7)
+    centre = np.stack([0.1 * (z / 1.9) ** 2, -0.05 * np.sin(z), z], 1)
+    trunk = write_trunk(tmp_path / 'curved.json', centre.tolist(), [[0, 0.25], [1.9, 0.19]])
+    result, trace, _ = run_climb(trunk, tmp_path / 'bag', delta=0.1, noise=0.001,
+                                 dropout=0.05, max_time=100)
+    assert result['planner_state'] == 'done', result['planner_message']
+    assert result['reached_top']
+    assert result['ring_trunk_contacts'] == 0
+    assert result['min_ring_clearance_m'] > 0.05
+    assert result['clamp_invariant_ok'] and result['interlock_trips'] == 0
+    assert result['within_stroke']
+    assert result['max_jacobian_condition'] < 30
+    assert result['centering_error_max_m'] < 0.015
+    assert result['success']
+    info = bag_info(tmp_path / 'bag')
+    assert info.complete
+    for topic in ('/climber/ground_truth', '/climber/joint_states', '/climber/leg_command',
+                  '/climber/ring1/ultrasonic', '/climber/ring2/clamp_closed'):
+        assert info.topics[topic].count > 0
+
+
+def test_graph_refuses_safely_on_nan_sensors(tmp_path):
+    trunk = write_trunk(tmp_path / 'straight.json', [[0, 0, 0], [0, 0, 3]], 0.2)
+    result, _, _ = run_climb(trunk, None, fault=1.0, max_time=8)
+    assert result['planner_state'] == 'refused'
+    assert 'nan' in result['refusal'].lower()
+    assert result['clamp_invariant_ok'] and result['steps'] == 0
+
+
+def test_graph_turns_around_the_trunk(tmp_path):
+    trunk = write_trunk(tmp_path / 'straight.json', [[0, 0, 0], [0, 0, 3]], 0.2)
+    result, _, _ = run_climb(trunk, None, mode='turn', turn_deg=-30, max_time=30)
+    assert result['planner_state'] == 'done', result['planner_message']
+    assert result['ring_turn_deg'] == pytest.approx([-30, -30], abs=1.0)
+    assert result['clamp_invariant_ok'] and result['ring_trunk_contacts'] == 0
+
+
+def test_cli_refuses_trunk_thicker_than_bore(tmp_path, capsys):
+    trunk = write_trunk(tmp_path / 'fat.json', [[0, 0, 0], [0, 0, 3]], [[0, 0.36], [3, 0.3]])
+    out = tmp_path / 'out'
+    assert cli_main(['climb', '--trunk', str(trunk), '--out', str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert 'thicker than the ring clearance' in err and err.count('\n') == 0
+    assert not out.exists()
+
+
+@pytest.mark.parametrize('content, words', [
+    ('{"centerline": [[0,0,0]], "radius": 0.2}', 'at least two'),
+    ('{"centerline": [[0,0,0],[0,0,1]], "radius": -1}', 'positive'),
+    ('{"centerline": [[0,0,0],[0,0,1]]}', "missing key 'radius'"),
+    ('{"centerline": [[0,0,0],[0,0,1],[0,0,0.5]], "radius": 0.2}', 'folds back'),
+    ('{"centerline": [[0,0,0],[0,0,"a"]], "radius": 0.2}', 'numbers'),
+    ('{"centerline": [[0,0,0],[0,0,1]], "radius": [[0, 0.2], [1, NaN]]}', 'non-finite'),
+    ('not json', 'not valid JSON'),
+])
+def test_bad_trunk_files_rejected(tmp_path, content, words):
+    path = tmp_path / 'bad.json'
+    path.write_text(content)
+    with pytest.raises(UserError, match=words):
+        Trunk.from_file(path)
+
+
+def test_cli_bad_arguments(tmp_path, capsys):
+    trunk = write_trunk(tmp_path / 'ok.json', [[0, 0, 0], [0, 0, 2]], 0.2)
+    assert cli_main(['climb', '--trunk', str(trunk), '--delta', '-1',
+                     '--out', str(tmp_path / 'o')]) == 2
+    assert '--delta' in capsys.readouterr().err
+    assert cli_main(['climb', '--trunk', str(tmp_path / 'missing.json'),
+                     '--out', str(tmp_path / 'o')]) == 2
+    assert 'no such file' in capsys.readouterr().err
+
+
+def test_node_parameters_validated():
+    from climber_pkg.planner_node import ClimberPlannerNode
+    from climber_pkg.ultrasonic_node import ClimberUltrasonicNode
+    from paramotion.graph import Graph
+    with Graph() as graph:
+        with pytest.raises(ParameterError, match="'delta'"):
+            graph.add(ClimberPlannerNode, delta=2.0)
+        with pytest.raises(ParameterError, match="'delta_min'"):
+            graph.add(ClimberPlannerNode, delta=0.05, delta_min=0.1)
+        with pytest.raises(ParameterError, match="'mode'"):
+            graph.add(ClimberPlannerNode, mode='fly')
+        with pytest.raises(ParameterError, match="'ring'"):
+            graph.add(ClimberUltrasonicNode, ring=3, trunk_file='x.json')
+        planner = graph.add(ClimberPlannerNode, name='planner_ok')
+        res = planner.set_parameters_atomically([])
+        assert res.successful
+
+
+def test_trunk_queries():
+    trunk = Trunk([[0, 0, 0], [0, 0, 2]], [[0, 0.3], [2, 0.2]])
+    assert trunk.length == pytest.approx(2.0)
+    assert float(trunk.radius_at(1.0)) == pytest.approx(0.25)
+    s, d = trunk.closest(np.array([[0.5, 0, 1.0], [0, 0, 3.0]]))
+    assert s[0] == pytest.approx(1.0) and d[0] == pytest.approx(0.5)
+    assert s[1] == pytest.approx(2.0)
+    dist = trunk.ray_distance([[0.38, 0, 1.0]], [[-1, 0, 0]], 0.4)
+    assert dist[0] == pytest.approx(0.38 - 0.25, abs=1e-6)
+    assert math.isinf(trunk.ray_distance([[0.38, 0, 2.5]], [[-1, 0, 0]], 0.4)[0])
+    point, s_at = trunk.axis_in_plane([0.01, 0.02, 1.3], [0, 0, 1])
+    assert s_at == pytest.approx(1.3) and np.allclose(point, [0, 0, 1.3])
