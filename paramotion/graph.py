@@ -94,17 +94,30 @@ class Graph:
         return recorder
 
     def drain(self):
-        """Run ready callbacks until none is left; returns how many ran."""
+        """Run ready callbacks until a whole wait finds nothing ready; returns how many ran.
+
+        One zero-timeout wait yields at most one callback per entity (one message per
+        subscription) and then reports a timeout *even if it yielded work*, so a single timeout
+        does not mean the executor is idle: only a wait round that yields nothing does. A burst
+        of N messages on one subscription therefore takes N rounds, all within this call.
+        """
         count = 0
         while True:
+            ran = 0
             try:
-                handler, _, _ = self.executor.wait_for_ready_callbacks(timeout_sec=0.0)
-            except (TimeoutException, ShutdownException, ExternalShutdownException):
+                while True:
+                    handler, _, _ = self.executor.wait_for_ready_callbacks(timeout_sec=0.0)
+                    handler()
+                    if handler.exception() is not None:
+                        raise handler.exception()
+                    ran += 1
+            except (ShutdownException, ExternalShutdownException):
                 break
-            handler()
-            if handler.exception() is not None:
-                raise handler.exception()
-            count += 1
+            except TimeoutException:
+                pass
+            count += ran
+            if ran == 0:
+                break
             if count > self.max_callbacks_per_drain:
                 raise RuntimeError(
                     f'executor did not drain after {count} callbacks: a callback keeps '

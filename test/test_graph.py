@@ -94,3 +94,25 @@ def test_graph_uses_private_domain_unless_user_sets_one(monkeypatch):
     monkeypatch.delenv('ROS_DOMAIN_ID')
     ids = {private_domain_id() for _ in range(20)}
     assert all(102 <= i <= 200 for i in ids) and len(ids) > 1
+
+
+def test_drain_delivers_every_message_of_a_burst():
+    """16 messages published at once on a reliable depth-32 topic all arrive in one drain."""
+    import rclpy
+    from rclpy.qos import QoSProfile
+    from std_msgs.msg import Float64
+    with Graph() as graph:
+        talker = rclpy.create_node('talker', context=graph.context)
+        listener = rclpy.create_node('listener', context=graph.context)
+        for node in (talker, listener):
+            graph.executor.add_node(node)
+            graph.nodes.append(node)
+        got = []
+        listener.create_subscription(Float64, '/burst', lambda m: got.append(m.data),
+                                     QoSProfile(depth=32))
+        pub = talker.create_publisher(Float64, '/burst', QoSProfile(depth=32))
+        graph.drain()
+        for i in range(16):
+            pub.publish(Float64(data=float(i)))
+        assert graph.drain() == 16
+        assert got == [float(i) for i in range(16)]
