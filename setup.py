@@ -15,6 +15,10 @@ NODES = [
     'bag_recorder = paramotion.bag.recorder_node:main',
     'bag_player = paramotion.bag.player_node:main',
     # coverage_pkg (issue 3)
+    'coverage_sim = coverage_pkg.sim_node:main',
+    'coverage_sonar = coverage_pkg.sonar_node:main',
+    'coverage_planner = coverage_pkg.planner_node:main',
+    'coverage_monitor = coverage_pkg.monitor_node:main',
     # climber_pkg (issue 4)
     'climber_sim = climber_pkg.sim_node:main',
     'climber_ultrasonic = climber_pkg.ultrasonic_node:main',

@@ -14,7 +14,6 @@ publish period, 20 ms).
 import datetime
 import math
 import os
-import random
 import time
 from pathlib import Path
 
@@ -56,16 +55,6 @@ def geom_span(robot):
     return robot.geometry.leg_max
 
 
-def isolated_domain_id():
-    """A DDS domain for a one-process lock-step run: ROS_DOMAIN_ID if the user set one, else a
-    random id in 101..200, so that another simulator publishing ``/clock`` on the same machine
-    (default domain 0) cannot leak into this run's sim time."""
-    env = os.environ.get('ROS_DOMAIN_ID')
-    if env:
-        return int(env)
-    return random.SystemRandom().randint(101, 200)
-
-
 def run_climb(trunk_file, bag_dir=None, delta=0.10, cycles=0, max_time=None, noise=0.001,
               dropout=0.0, fault=0.0, start_s=0.4, seed=1, robot_config='', publish_period=0.02,
               sample_every=5, domain_id=None, physics_dt=0.002, mode='climb',
@@ -92,7 +81,7 @@ def run_climb(trunk_file, bag_dir=None, delta=0.10, cycles=0, max_time=None, noi
              'min_leg_length': math.inf, 'max_leg_length': -math.inf, 'max_condition': 0.0,
              'both_clamps_open_samples': 0, 'samples': 0}
     centering = []
-    with Graph(domain_id=isolated_domain_id() if domain_id is None else domain_id) as graph:
+    with Graph(domain_id=domain_id) as graph:
         sim = graph.add(ClimberSimNode, trunk_file=str(trunk_file), robot_config=robot_config,
                         start_s=float(start_s), publish_period=float(publish_period),
                         start_length=float(start_length or (

@@ -29,7 +29,7 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from paramotion.errors import ParameterError
+from paramotion.errors import ParameterError, UserError
 
 _INT_LIMIT = 2 ** 62
 
@@ -220,7 +220,7 @@ def run_node(node_cls, args=None):
         # crash. Any other RCL error (context still valid) is real and re-raised.
         if rclpy.ok():
             raise
-    except ParameterError as exc:
+    except UserError as exc:  # bad parameter, bad input file named by a parameter
         print(f'error: {exc}', file=sys.stderr)
         sys.exit(2)
     finally:

@@ -1,0 +1,90 @@
+"""The coverage picture (like Fig. 13 of Acar, Choset and Lee): world, path, cells and graph."""
+import numpy as np
+
+
+def render_coverage(path_png, world, path, graph_dict=None, layers=None, uncovered=None,
+                    title=''):
+    """Draw the world, the robot path, the sensed vast/narrow cells, the GVD, critical, cusp
+    and meet points and the hierarchical graph, and save to ``path_png``.
+
+    ``layers`` is a dict with boolean grids ``vast``, ``narrow``, ``gvd`` and an ``extent``
+    (xmin, xmax, ymin, ymax) in the world frame (the planner's last decomposition).
+    """
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Polygon as MplPolygon
+
+    xmin, ymin, xmax, ymax = world.bounds
+    w = xmax - xmin
+    h = ymax - ymin
+    fig, ax = plt.subplots(figsize=(min(16, 4 + w * 0.45), min(12, 1.5 + h * 0.45)))
+    ax.add_patch(MplPolygon(world.boundary, closed=True, fill=False, lw=2, color='k'))
+    for o in world.obstacles:
+        ax.add_patch(MplPolygon(o, closed=True, color='0.25'))
+    if layers:
+        ext = layers['extent']
+        img = np.zeros(layers['vast'].shape + (4,))
+        img[layers['vast']] = (0.75, 0.75, 0.75, 0.6)
+        img[layers['narrow']] = (0.85, 0.93, 1.0, 0.6)
+        ax.imshow(img, origin='lower', extent=ext, interpolation='nearest', zorder=0)
+        gy, gx = np.nonzero(layers['gvd'])
+        if len(gy):
+            res = (ext[1] - ext[0]) / layers['gvd'].shape[1]
+            ax.plot(ext[0] + (gx + 0.5) * res, ext[2] + (gy + 0.5) * res, ',', color='tab:blue',
+                    alpha=0.5, zorder=1)
+    if uncovered is not None and len(uncovered):
+        ax.plot(uncovered[:, 0], uncovered[:, 1], 's', ms=1.5, color='red', alpha=0.6,
+                label='CVS not seen', zorder=2)
+    p = np.asarray(path)
+    if len(p):
+        ax.plot(p[:, 0], p[:, 1], '-', color='tab:green', lw=0.8, label='robot path', zorder=3)
+        ax.plot(p[0, 0], p[0, 1], 'o', color='tab:green', ms=7, zorder=4)
+    if graph_dict:
+        nodes = {n['id']: n for n in graph_dict['nodes'] if n['alive']}
+        crit = [c for n in nodes.values() for c in n.get('critical_points', [])]
+        if crit:
+            c = np.array([[q[0], q[1]] for q in crit], dtype=float)
+            ax.plot(c[:, 0], c[:, 1], 'k.', ms=5, label='critical points', zorder=5)
+        meet = [m for n in nodes.values() for m in n.get('meet_points', [])]
+        if meet:
+            m = np.array(meet, dtype=float)
+            ax.plot(m[:, 0], m[:, 1], 'o', color='0.5', ms=5, label='meet points', zorder=5)
+        first = True
+        for e in graph_dict['edges']:
+            a, b = nodes.get(e['vast']), nodes.get(e['narrow'])
+            for cp in e['cusp_points']:
+                ax.plot(cp[0], cp[1], 'o', mfc='white', mec='k', ms=6, zorder=6,
+                        label='cusp points' if first else None)
+                first = False
+                if a and b:
+                    ax.plot([a['centroid'][0], cp[0], b['centroid'][0]],
+                            [a['centroid'][1], cp[1], b['centroid'][1]], ':', color='purple',
+                            lw=1, zorder=6)
+        for n in nodes.values():
+            style = dict(boxstyle='round', fc='0.7' if n['type'] == 'vast' else 'white',
+                         ec='purple')
+            ax.text(n['centroid'][0], n['centroid'][1], f"{n['type'][0].upper()}{n['id']}",
+                    ha='center', va='center', fontsize=8, bbox=style, zorder=7)
+    ax.set_xlim(xmin - 0.5, xmax + 0.5)
+    ax.set_ylim(ymin - 0.5, ymax + 0.5)
+    ax.set_aspect('equal')
+    ax.set_title(title, fontsize=9)
+    ax.legend(loc='upper right', fontsize=7, framealpha=0.8)
+    fig.tight_layout()
+    fig.savefig(path_png, dpi=110)
+    plt.close(fig)
+
+
+def planner_layers(planner):
+    """The planner's last decomposition as picture layers (see :func:`render_coverage`)."""
+    d = planner.last
+    if not d:
+        return None
+    g = planner.grid
+    rs, cs = d['rs'], d['cs']
+    x0 = g.origin[0] + cs.start * g.res
+    y0 = g.origin[1] + rs.start * g.res
+    ny, nx = d['vast'].shape
+    return {'vast': d['vast'], 'narrow': d['narrow'], 'gvd': d['gvd'] & d['reach'],
+            'extent': (x0, x0 + nx * g.res, y0, y0 + ny * g.res)}

@@ -1,0 +1,184 @@
+"""Generalized Voronoi diagram (GVD): from the sonar ring and from the sensed grid.
+
+Section III of Acar, Choset and Lee: a GVD edge is the set of points equidistant to two
+obstacles, ``{x : d_i(x) = d_j(x) <= d_h(x) for all h, grad d_i(x) != grad d_j(x)}``; *meet
+points* are where three or more obstacles are equidistant. Following every GVD edge passes an
+infinite-range detector over the whole free space, and (Lemma 1) following the GVD inside the
+narrow region ``NR = {r < D(x) <= delta}`` passes a delta-range detector over it.
+
+Two views of the same object are provided:
+
+* **From range data** (the sensor-based construction of Choset and Burdick [11]): the closest
+  obstacles are the local minima of the range ring; the robot is on the GVD when the two
+  smallest minima are equal, at a meet point when three are, and it detects a *cusp point*
+  while tracing a narrow GVD edge when the minimum distance rises above delta (Fig. 11).
+* **From the sensed evidence grid**: ``D`` is the Euclidean distance transform to the sensed
+  obstacles and a cell is on the GVD when it and a neighbour have nearest obstacle points in
+  clearly different directions (the discrete form of ``grad d_i != grad d_j``), which is how
+  the planner builds the narrow subgraphs of the hierarchical decomposition.
+"""
+import math
+
+import numpy as np
+from scipy import ndimage
+
+# ------------------------------------------------------------------ range-ring (sensor) view
+
+
+def ring_minima(ranges, angles, min_separation=math.radians(30.0)):
+    """Closest obstacles seen by a range ring: local minima of range over bearing.
+
+    ``ranges`` may hold REP 117 values; only finite ones count. Returns a list of
+    ``(range, angle)`` sorted by range. Minima closer in bearing than ``min_separation`` are the
+    same obstacle (a flat wall gives one minimum), so only the nearer one is kept.
+    """
+    r = np.asarray(ranges, dtype=float)
+    a = np.asarray(angles, dtype=float)
+    n = len(r)
+    rr = np.where(np.isfinite(r) & (r > 0), r, np.inf)
+    mins = []
+    for k in range(n):
+        if not np.isfinite(rr[k]):
+            continue
+        if rr[k] <= rr[(k - 1) % n] and rr[k] <= rr[(k + 1) % n]:
+            mins.append((float(rr[k]), float(a[k])))
+    mins.sort()
+    kept = []
+    for d, ang in mins:
+        if all(abs(math.remainder(ang - b, 2 * math.pi)) >= min_separation for _, b in kept):
+            kept.append((d, ang))
+    return kept
+
+
+def gvd_order(ranges, angles, tol, min_separation=math.radians(30.0)):
+    """How many obstacles are equidistant (within ``tol``) and closest: the GVD order.
+
+    1 means the robot is not on the GVD, 2 on a GVD edge, 3 or more at a meet point.
+    """
+    mins = ring_minima(ranges, angles, min_separation)
+    if not mins:
+        return 0
+    d0 = mins[0][0]
+    return sum(1 for d, _ in mins if d - d0 <= tol)
+
+
+def narrow_cusp_crossed(previous_min_distance, min_distance, delta):
+    """Cusp test while tracing a narrow GVD edge (Fig. 11).
+
+    In a narrow cell the minimum distance to the obstacles stays at most delta; the robot has
+    crossed a cusp point into a vast cell when it rises above delta.
+    """
+    return previous_min_distance <= delta < min_distance
+
+
+# ------------------------------------------------------------------ grid view
+
+
+def distance_transform(obstacle, resolution):
+    """Distance D (m) from every cell centre to the nearest obstacle cell, and that cell.
+
+    Returns ``(D, rows, cols)``; ``rows[i, j], cols[i, j]`` index the nearest obstacle cell.
+    D is measured from the cell centre to the near edge of that obstacle cell (centre distance
+    minus half a cell), so a wall anywhere inside the obstacle cell is never closer than D
+    by more than half a cell.
+    """
+    dist, (rows, cols) = ndimage.distance_transform_edt(~obstacle, return_indices=True)
+    d = np.maximum(dist - 0.5, 0.0) * resolution
+    return d, rows, cols
+
+
+def gvd_cells(free, rows, cols, min_angle=math.radians(50.0), min_distance_cells=1.5):
+    """Cells of the discrete GVD of the free cells ``free``.
+
+    A free cell is on the GVD if, for one of its 4-neighbours, the nearest obstacle points of
+    the two cells are seen from the cell at an angle of at least ``min_angle`` (the two
+    closest obstacles have different gradients, ``grad d_i != grad d_j``) and lie more than
+    ``min_distance_cells`` apart. The angle test prunes the spurs that sonar-noisy walls would
+    otherwise grow; a right-angle corner (bisector angle 90 degrees) is kept.
+    """
+    ny, nx = free.shape
+    ii, jj = np.mgrid[0:ny, 0:nx]
+    vr = (rows - ii).astype(float)
+    vc = (cols - jj).astype(float)
+    out = np.zeros_like(free)
+    cos_min = math.cos(min_angle)
+    for di, dj in ((0, 1), (1, 0)):
+        a = (slice(0, ny - di), slice(0, nx - dj))
+        b = (slice(di, ny), slice(dj, nx))
+        fr_a, fc_a = rows[a], cols[a]
+        fr_b, fc_b = rows[b], cols[b]
+        sep = np.hypot(fr_a - fr_b, fc_a - fc_b) > min_distance_cells
+        # angle seen from cell a between its own feature and the neighbour's feature
+        v1r, v1c = vr[a], vc[a]
+        v2r, v2c = (fr_b - ii[a]).astype(float), (fc_b - jj[a]).astype(float)
+        n1 = np.hypot(v1r, v1c)
+        n2 = np.hypot(v2r, v2c)
+        with np.errstate(invalid='ignore', divide='ignore'):
+            cosang = (v1r * v2r + v1c * v2c) / (n1 * n2)
+        hit = sep & (cosang <= cos_min) & free[a] & free[b]
+        out[a] |= hit
+        out[b] |= hit
+    return out & free
+
+
+def prune_small(mask, min_cells):
+    """Drop the 8-connected pieces of ``mask`` with fewer than ``min_cells`` cells."""
+    lab, n = ndimage.label(mask, structure=np.ones((3, 3)))
+    if n == 0:
+        return mask
+    size = np.bincount(lab.ravel())
+    keep = size >= min_cells
+    keep[0] = False
+    return keep[lab]
+
+
+def _clusters(mask, min_cells=1):
+    """Centroids (row, col) of the 8-connected clusters of ``mask``."""
+    lab, n = ndimage.label(mask, structure=np.ones((3, 3)))
+    if n == 0:
+        return []
+    idx = np.arange(1, n + 1)
+    cen = ndimage.center_of_mass(mask, lab, idx)
+    size = ndimage.sum(mask, lab, idx)
+    return [(float(r), float(c)) for (r, c), s in zip(cen, size) if s >= min_cells]
+
+
+def meet_points(gvd, radius_cells=5):
+    """Meet points of a discrete GVD: where three or more GVD edges come together.
+
+    For every GVD cell the GVD is sampled on a circle of ``radius_cells`` around it; a cell
+    whose circle crosses the GVD in three or more separate arcs (of at least two samples) is
+    next to a meet point
+    (two arcs: inside an edge; one: near the end of an edge). Returns ``(row, col)``
+    centroids of the clusters of such cells. Works on GVD bands one or two cells thick.
+    """
+    rows, cols = np.nonzero(gvd)
+    if len(rows) == 0:
+        return []
+    ny, nx = gvd.shape
+    n = max(16, int(round(2 * math.pi * radius_cells * 1.5)))
+    th = np.linspace(0.0, 2 * math.pi, n, endpoint=False)
+    dr = np.rint(radius_cells * np.sin(th)).astype(int)
+    dc = np.rint(radius_cells * np.cos(th)).astype(int)
+    rr = np.clip(rows[:, None] + dr[None, :], 0, ny - 1)
+    cc = np.clip(cols[:, None] + dc[None, :], 0, nx - 1)
+    ring = gvd[rr, cc]
+    # Arcs at least two samples long: a one-sample touch is a sensing burr on an edge.
+    starts = (ring & np.roll(ring, -1, axis=1) & ~np.roll(ring, 1, axis=1)).sum(axis=1)
+    branch = np.zeros_like(gvd)
+    branch[rows[starts >= 3], cols[starts >= 3]] = True
+    return _clusters(branch)
+
+
+def cusp_cells(gvd, distance, delta):
+    """Cusp points: GVD cells where D crosses delta (Section IV-B, ``D(x) = delta``).
+
+    A GVD cell with ``D > delta`` that touches a GVD cell with ``D <= delta`` (8-neighbours)
+    marks the boundary between the GVD of a vast cell and that of a narrow cell (Lemma 2).
+    Returns ``(row, col)`` centroids of such clusters.
+    """
+    vast_gvd = gvd & (distance > delta)
+    narrow_gvd = gvd & (distance <= delta)
+    near_narrow = ndimage.binary_dilation(narrow_gvd, structure=np.ones((3, 3)))
+    near_vast = ndimage.binary_dilation(vast_gvd, structure=np.ones((3, 3)))
+    return _clusters((vast_gvd & near_narrow) | (narrow_gvd & near_vast))

@@ -1,0 +1,196 @@
+"""Hierarchical decomposition graph (Section IV-C) and its incremental construction (Sec. V).
+
+Two kinds of nodes: *vast* nodes (connected components of the vast region
+``VR = {x in FCS_r : D(x) > delta}``, each holding a Reeb graph of its Morse cells) and
+*narrow* nodes (components of ``NR = FCS_r \\ VR``, each holding a piece of the GVD with its
+meet points). A vast and a narrow node are joined by one edge per *cusp point* (a GVD point
+with ``D = delta``) between them; two nodes of the same kind are never adjacent.
+
+The planner rebuilds the components from its growing sensor map; this class keeps node
+*identity* across rebuilds (a node is anchored at the point where it was first sensed, e.g. the
+start or a cusp point; components that grow together merge their nodes), the covered flags of
+Algorithm 1, the cusp edges, and answers ``FindUncoveredNode`` and paths through the graph.
+"""
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class GraphNode:
+    """One vast or narrow cell of the hierarchical decomposition."""
+
+    id: int
+    kind: str                      # 'vast' or 'narrow'
+    anchor: tuple                  # (x, y) where the node was first sensed
+    covered: bool = False
+    alive: bool = True             # False once merged into another node or no longer sensed
+    merged_into: int = -1
+    centroid: tuple = (0.0, 0.0)
+    area: float = 0.0
+    reeb_points: list = field(default_factory=list)    # vast: [(x, y, kind)] critical points
+    reeb_edges: list = field(default_factory=list)     # vast: Morse cells as (i, j) point pairs
+    meet_points: list = field(default_factory=list)    # narrow: [(x, y)]
+
+
+def _label_near(labels, cell, window):
+    """Most common non-zero label within ``window`` cells of ``cell`` (0 if none).
+
+    Thin components (GVD edges) shift by a cell when the map is refined; looking in a small
+    window keeps a node attached to its component.
+    """
+    if cell is None:
+        return 0
+    i, j = cell
+    win = labels[max(i - window, 0):i + window + 1, max(j - window, 0):j + window + 1]
+    if labels[i, j]:
+        return int(labels[i, j])
+    vals = win[win > 0]
+    if vals.size == 0:
+        return 0
+    return int(np.bincount(vals).argmax())
+
+
+class HierarchicalGraph:
+    """Nodes, cusp edges, covered flags; node identity kept across map rebuilds."""
+
+    def __init__(self):
+        self.nodes = {}
+        self.edges = {}            # (vast_id, narrow_id) -> list of cusp (x, y)
+        self._next = 0
+
+    def create_node(self, kind, anchor):
+        """CreateNode of Algorithm 1: a new uncovered node of the given kind."""
+        node = GraphNode(self._next, kind, (float(anchor[0]), float(anchor[1])))
+        self.nodes[node.id] = node
+        self._next += 1
+        return node
+
+    def alive(self, kind=None):
+        return [n for n in self.nodes.values() if n.alive and (kind is None or n.kind == kind)]
+
+    def update(self, kind, labels, to_cell, to_world, resolution, seeds=(), window=3):
+        """Match the components ``labels`` (0 = none) of one kind to graph nodes.
+
+        ``to_cell(x, y) -> (row, col) or None`` and ``to_world(rows, cols) -> (n, 2)`` convert
+        between the map and the grid crop. Components holding the anchors of existing nodes
+        keep the smallest such id (the others are merged into it); a component without any
+        anchor is a newly sensed cell and gets a new node anchored at its first seed in it
+        (a cusp point or the robot) or at its centroid. Returns ``{label: node_id}``.
+        """
+        n_lab = int(labels.max()) if labels.size else 0
+        owners = {}
+        for node in self.alive(kind):
+            lab = _label_near(labels, to_cell(*node.anchor), window)
+            if lab == 0:
+                node.alive = False          # the sensed cell it stood for has vanished
+                continue
+            owners.setdefault(lab, []).append(node.id)
+        mapping = {}
+        if n_lab == 0:
+            return mapping
+        from scipy import ndimage
+        idx = np.arange(1, n_lab + 1)
+        cents = ndimage.center_of_mass(np.ones_like(labels), labels, idx)
+        sizes = ndimage.sum(np.ones_like(labels), labels, idx)
+        for lab in range(1, n_lab + 1):
+            ids = sorted(owners.get(lab, []))
+            if ids:
+                keep = self.nodes[ids[0]]
+                for other in ids[1:]:
+                    o = self.nodes[other]
+                    o.alive = False
+                    o.merged_into = keep.id
+                    self._merge_edges(other, keep.id)
+            else:
+                anchor = None
+                for s in seeds:
+                    if _label_near(labels, to_cell(*s), window) == lab:
+                        anchor = s
+                        break
+                if anchor is None:
+                    rr, cc = np.nonzero(labels == lab)
+                    anchor = tuple(to_world(rr[:1], cc[:1])[0])
+                keep = self.create_node(kind, anchor)
+            c = to_world(np.array([cents[lab - 1][0]]), np.array([cents[lab - 1][1]]))[0]
+            keep.centroid = (float(c[0]), float(c[1]))
+            keep.area = float(sizes[lab - 1]) * resolution ** 2
+            mapping[lab] = keep.id
+        return mapping
+
+    def _merge_edges(self, old, new):
+        for (v, n), cusps in list(self.edges.items()):
+            if old in (v, n):
+                del self.edges[(v, n)]
+                key = (new if v == old else v, new if n == old else n)
+                self.add_cusp(key[0], key[1], cusps)
+
+    def add_cusp(self, vast_id, narrow_id, cusps, merge_radius=0.5):
+        """Record cusp point(s) linking a vast node and a narrow node (one edge per cusp)."""
+        if isinstance(cusps, tuple):
+            cusps = [cusps]
+        lst = self.edges.setdefault((vast_id, narrow_id), [])
+        for c in cusps:
+            if all(np.hypot(c[0] - e[0], c[1] - e[1]) > merge_radius for e in lst):
+                lst.append((float(c[0]), float(c[1])))
+
+    def neighbours(self, node_id):
+        out = set()
+        for (v, n) in self.edges:
+            if v == node_id and self.nodes[n].alive:
+                out.add(n)
+            elif n == node_id and self.nodes[v].alive:
+                out.add(v)
+        return out
+
+    def graph_path(self, start, goal):
+        """Shortest path (fewest cusp crossings) between two nodes; [] if not connected."""
+        if start == goal:
+            return [start]
+        prev = {start: None}
+        q = deque([start])
+        while q:
+            u = q.popleft()
+            for v in sorted(self.neighbours(u)):
+                if v not in prev:
+                    prev[v] = u
+                    if v == goal:
+                        path = [v]
+                        while prev[path[-1]] is not None:
+                            path.append(prev[path[-1]])
+                        return path[::-1]
+                    q.append(v)
+        return []
+
+    def find_uncovered_node(self, current, distance=None):
+        """FindUncoveredNode of Algorithm 1: the uncovered node to visit next, or None.
+
+        Prefers the node fewest cusp crossings away from ``current``; ties (and nodes the graph
+        does not connect yet) are broken by ``distance(node) -> metres`` when given.
+        """
+        cands = [n for n in self.alive() if not n.covered]
+        if not cands:
+            return None
+
+        def key(n):
+            hops = len(self.graph_path(current, n.id)) if current is not None else 0
+            hops = hops if hops > 0 else 10 ** 6
+            return (hops, distance(n) if distance else 0.0, n.id)
+        return min(cands, key=key)
+
+    def to_dict(self):
+        """JSON-friendly snapshot: nodes (type vast/narrow) and edges with their cusp points."""
+        return {
+            'nodes': [{'id': n.id, 'type': n.kind, 'covered': n.covered,
+                       'anchor': list(n.anchor), 'centroid': list(n.centroid),
+                       'area_m2': round(n.area, 3), 'alive': n.alive,
+                       'merged_into': n.merged_into,
+                       'critical_points': [list(p) for p in n.reeb_points],
+                       'reeb_edges': [list(e) for e in n.reeb_edges],
+                       'meet_points': [list(p) for p in n.meet_points]}
+                      for n in self.nodes.values()],
+            'edges': [{'vast': v, 'narrow': n, 'cusp_points': [list(c) for c in cusps]}
+                      for (v, n), cusps in self.edges.items()
+                      if self.nodes[v].alive and self.nodes[n].alive],
+        }

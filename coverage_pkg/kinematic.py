@@ -1,0 +1,82 @@
+"""A pure-Python, ROS-free closed loop: kinematic disk robot + simulated sonar + planner.
+
+Used by the tests and for quick experiments; the ROS graph (PyBullet sim node, sonar node,
+planner node, monitor node) runs the very same planner and sonar model. The robot integrates
+the body-frame velocity command; a move that would bring the centre within r of a wall is
+refused (the robot stops there, as against a wall), so a planner error shows up as a stuck
+robot rather than as a robot passing through walls.
+"""
+import math
+import time
+
+import numpy as np
+import shapely
+
+from coverage_pkg.cvs import CoverableSet, CoverageAccumulator
+from coverage_pkg.planner import CoveragePlanner, PlannerConfig
+from coverage_pkg.sonar import SonarRing, simulate_ring
+
+
+def run_kinematic(world, config=None, ring=None, dt=0.05, sweep_period=0.1, max_time=3000.0,
+                  seed=0, dropout=None, corrupt=None, cvs_resolution=0.05, on_step=None):
+    """Run coverage on ``world`` until the planner is done/stuck or ``max_time`` sim seconds.
+
+    ``dropout(t) -> bool`` suppresses sweeps (sonar silence); ``corrupt(t, ranges) -> ranges``
+    alters readings (NaN/inf faults). Returns a result dict with the path, its length, the
+    covered fraction of CVS and the planner.
+    """
+    cfg = config or PlannerConfig()
+    ring = ring or SonarRing()
+    ring.validate(cfg.delta if cfg.detector == 'extended' else None)
+    planner = CoveragePlanner(cfg, ring.mount_angles(), ring.beam_width, ring.min_range,
+                              ring.max_range, ring.noise_std)
+    rng = np.random.default_rng(seed)
+    cvs = CoverableSet(world, cfg.radius, cfg.detector_range(), cvs_resolution)
+    acc = CoverageAccumulator(cvs)
+    x, y = map(float, world.start)
+    yaw = 0.0
+    t = 0.0
+    next_sweep = 0.0
+    path = [(x, y)]
+    length = 0.0
+    boundary = world.free.boundary
+    update_times = []
+    t0 = time.perf_counter()
+    cmd = None
+    while t < max_time:
+        planner.on_odometry(t, x, y, yaw)
+        acc.add_pose(x, y, min_step=0.05)
+        if t >= next_sweep - 1e-9:
+            next_sweep += sweep_period
+            if dropout is None or not dropout(t):
+                ranges = simulate_ring(world, (x, y, yaw), ring, rng)
+                if corrupt is not None:
+                    ranges = corrupt(t, ranges)
+                a = time.perf_counter()
+                planner.on_sweep(t, ranges)
+                cmd = planner.update(t)
+                update_times.append(time.perf_counter() - a)
+            else:
+                cmd = planner.update(t)
+        if cmd is None:
+            cmd = planner.update(t)
+        if on_step is not None:
+            on_step(t, planner, cmd)
+        if cmd.state in ('done', 'stuck'):
+            break
+        c, s = math.cos(yaw), math.sin(yaw)
+        vx, vy = c * cmd.vx - s * cmd.vy, s * cmd.vx + c * cmd.vy
+        nx_, ny_ = x + vx * dt, y + vy * dt
+        if (vx or vy) and boundary.distance(shapely.Point(nx_, ny_)) > cfg.radius and \
+                world.free.contains(shapely.Point(nx_, ny_)):
+            length += math.hypot(nx_ - x, ny_ - y)
+            x, y = nx_, ny_
+            if math.hypot(x - path[-1][0], y - path[-1][1]) >= 0.05:
+                path.append((x, y))
+        yaw = math.remainder(yaw + cmd.wz * dt, 2 * math.pi)
+        t += dt
+    acc.add_pose(x, y)
+    return {'state': planner.state, 'sim_time': t, 'wall_time': time.perf_counter() - t0,
+            'path': path, 'path_length': length, 'covered_fraction': acc.fraction(),
+            'cvs_area': cvs.area, 'lower_bound': cvs.lower_bound_path(), 'planner': planner,
+            'accumulator': acc, 'update_times': update_times}

@@ -1,0 +1,126 @@
+"""The planner's memory of the world: a growable log-odds evidence grid built from sonar.
+
+Algorithm 1 of Acar, Choset and Lee constructs the hierarchical decomposition *incrementally*
+from sensor data. Our planner keeps the accumulated range data as an occupancy evidence grid in
+the ``odom`` frame (the world is unknown, so the grid grows as the robot senses new space) and
+a *trace* layer marking where the robot centre has been, which is how the planner knows which
+lapping lines, boundary pieces and GVD edges it has already followed.
+"""
+import math
+
+import numpy as np
+
+L_FREE = -0.4       # log-odds added by a free observation
+L_OCC = 0.9         # log-odds added by an echo arc
+L_MIN, L_MAX = -4.0, 4.0
+T_FREE = -0.6       # below: known free
+T_OCC = 0.6         # above: known occupied
+
+
+class EvidenceGrid:
+    """Log-odds occupancy grid plus a trace layer, growing in 4 m chunks as needed.
+
+    Cell (i, j) is row i (y) and column j (x); its centre is
+    ``origin + (j + 0.5, i + 0.5) * resolution``.
+    """
+
+    CHUNK = 4.0
+
+    def __init__(self, resolution=0.1, center=(0.0, 0.0), half_size=6.0):
+        self.res = float(resolution)
+        n = int(math.ceil(2 * half_size / self.res))
+        self.origin = np.array([center[0] - half_size, center[1] - half_size], dtype=float)
+        self.logodds = np.zeros((n, n), dtype=np.float32)
+        self.trace = np.zeros((n, n), dtype=bool)
+        self.seen = np.zeros((n, n), dtype=bool)      # ever observed (free or occupied)
+        self.version = 0                              # bumped when the grid changes shape
+
+    @property
+    def shape(self):
+        return self.logodds.shape
+
+    def ensure(self, xmin, ymin, xmax, ymax):
+        """Grow the grid so that the given box lies inside it."""
+        ny, nx = self.shape
+        x1, y1 = self.origin + np.array([nx, ny]) * self.res
+        pad = [0, 0, 0, 0]                                # left, bottom, right, top (cells)
+        step = int(math.ceil(self.CHUNK / self.res))
+        if xmin < self.origin[0]:
+            pad[0] = step * int(math.ceil((self.origin[0] - xmin) / self.CHUNK))
+        if ymin < self.origin[1]:
+            pad[1] = step * int(math.ceil((self.origin[1] - ymin) / self.CHUNK))
+        if xmax > x1:
+            pad[2] = step * int(math.ceil((xmax - x1) / self.CHUNK))
+        if ymax > y1:
+            pad[3] = step * int(math.ceil((ymax - y1) / self.CHUNK))
+        if not any(pad):
+            return
+        widths = ((pad[1], pad[3]), (pad[0], pad[2]))
+        self.logodds = np.pad(self.logodds, widths)
+        self.trace = np.pad(self.trace, widths)
+        self.seen = np.pad(self.seen, widths)
+        self.origin = self.origin - np.array([pad[0], pad[1]]) * self.res
+        self.version += 1
+
+    def cells(self, xy):
+        """(rows, cols) integer indices of points ``xy`` (n, 2)."""
+        ij = np.floor((np.asarray(xy) - self.origin) / self.res).astype(np.int64)
+        return ij[:, 1], ij[:, 0]
+
+    def center(self, rows, cols):
+        """World (x, y) of cell centres."""
+        return np.stack([self.origin[0] + (np.asarray(cols) + 0.5) * self.res,
+                         self.origin[1] + (np.asarray(rows) + 0.5) * self.res], axis=-1)
+
+    def integrate(self, free_xy, occ_xy):
+        """Add one sweep's evidence; a cell counts once per sweep, echoes win over free."""
+        pts = [p for p in (free_xy, occ_xy) if len(p)]
+        if not pts:
+            return
+        allp = np.vstack(pts)
+        lo, hi = allp.min(axis=0), allp.max(axis=0)
+        self.ensure(lo[0] - 1.0, lo[1] - 1.0, hi[0] + 1.0, hi[1] + 1.0)
+        nx = self.shape[1]
+        flat = self.logodds.reshape(-1)
+        seen = self.seen.reshape(-1)
+        # Fancy-index updates apply once per distinct cell even with repeated indices, so one
+        # sweep adds at most one observation per cell; echo cells keep their echo update.
+        occ = np.zeros(0, dtype=np.int64)
+        if len(occ_xy):
+            r, c = self.cells(occ_xy)
+            occ = r * nx + c
+        before = flat[occ]
+        if len(free_xy):
+            r, c = self.cells(free_xy)
+            free = r * nx + c
+            flat[free] = np.maximum(flat[free] + L_FREE, L_MIN)
+            seen[free] = True
+        if len(occ):
+            flat[occ] = np.minimum(before + L_OCC, L_MAX)
+            seen[occ] = True
+
+    def mark_trace(self, x, y, radius):
+        """Mark the cells within ``radius`` of the robot centre as traced."""
+        self.ensure(x - radius - 1, y - radius - 1, x + radius + 1, y + radius + 1)
+        k = int(math.ceil(radius / self.res))
+        r0, c0 = self.cells(np.array([[x, y]]))
+        rr, cc = np.mgrid[-k:k + 1, -k:k + 1]
+        cen = self.center(r0[0] + rr, c0[0] + cc)
+        inside = np.hypot(cen[..., 0] - x, cen[..., 1] - y) <= radius
+        self.trace[(r0[0] + rr)[inside], (c0[0] + cc)[inside]] = True
+
+    def occupied(self):
+        return self.logodds > T_OCC
+
+    def free(self):
+        return self.logodds < T_FREE
+
+    def known_bbox(self, margin_cells=3):
+        """Row/column slice of the part of the grid that has been observed (plus a margin)."""
+        rows = np.flatnonzero(self.seen.any(axis=1))
+        cols = np.flatnonzero(self.seen.any(axis=0))
+        if len(rows) == 0:
+            return slice(0, self.shape[0]), slice(0, self.shape[1])
+        ny, nx = self.shape
+        return (slice(max(rows[0] - margin_cells, 0), min(rows[-1] + margin_cells + 1, ny)),
+                slice(max(cols[0] - margin_cells, 0), min(cols[-1] + margin_cells + 1, nx)))

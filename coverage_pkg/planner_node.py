@@ -1,0 +1,258 @@
+"""coverage_planner: Algorithm 1 (hierarchical decomposition coverage) as a ROS 2 node.
+
+A thin adapter around :class:`coverage_pkg.planner.CoveragePlanner` (all the math is there).
+Inputs, and nothing else (never the world file, never ground truth):
+
+* ``sonar/scan`` (sensor_msgs/LaserScan: one sweep of the sonar ring, REP 117 values; the
+  beam width is the ``beam_width`` parameter since LaserScan has no field of view);
+* ``odom`` (nav_msgs/Odometry).
+
+(The per-transducer ``sonar/ranges`` stream carries the same readings as sensor_msgs/Range; the
+planner reads the scan because one message per sweep can't be split across executor steps.)
+
+Outputs:
+
+* ``cmd_vel`` (geometry_msgs/Twist, body frame) after every sweep; zero when stopping;
+* ``/coverage/status`` (diagnostic_msgs/DiagnosticArray, latched): state (``warmup``,
+  ``covering_vast``, ``covering_narrow``, ``waiting_for_sonar``, ``stuck``, ``done``...), the
+  current node, uncovered nodes, the last event;
+* ``/coverage/graph`` (std_msgs/String, latched): the hierarchical decomposition graph as JSON;
+* ``/coverage/markers`` (visualization_msgs/MarkerArray, frame ``odom``): vast and narrow cells,
+  GVD, critical, cusp and meet points, the graph, the path so far and the planned path.
+"""
+import json
+import math
+import time
+
+import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import Point, Twist
+from nav_msgs.msg import Odometry
+from sensor_msgs.msg import LaserScan
+from std_msgs.msg import ColorRGBA, String
+from visualization_msgs.msg import Marker, MarkerArray
+
+from coverage_pkg.baseline import robot_size_config
+from coverage_pkg.planner import PlannerConfig, PlannerDriver
+from coverage_pkg.sonar import yaw_of
+from paramotion.errors import UserError
+from paramotion.node import Param, ParamotionNode, run_node
+from paramotion.qos import LATCHED_QOS, SENSOR_QOS, STATE_QOS
+
+LEVEL = {'done': DiagnosticStatus.OK, 'stuck': DiagnosticStatus.ERROR,
+         'waiting_for_sonar': DiagnosticStatus.WARN, 'error': DiagnosticStatus.ERROR}
+
+
+class CoveragePlannerNode(ParamotionNode):
+    """Online coverage with an extended-range detector (or the robot-size baseline)."""
+
+    PARAMS = (
+        Param('delta', 2.0, 'Detector range delta (m); must exceed radius.', min=0.01,
+              max=100.0, read_only=True),
+        Param('radius', 0.25, 'Robot radius r (m).', min=0.01, max=10.0, read_only=True),
+        Param('detector', 'extended', "'extended': hierarchical decomposition with range "
+              "delta; 'robot': robot-size detector, plain boustrophedon (Section II).",
+              choices=('extended', 'robot'), read_only=True),
+        Param('beam_width', 0.2, 'Cone angle of one transducer (rad); the same as the sonar '
+              "ring's field_of_view (LaserScan does not carry it).", min=0.01, max=1.5,
+              read_only=True),
+        Param('resolution', 0.1, 'Evidence grid cell (m); at most radius. Extended detector '
+              'only: the robot-size baseline uses radius / 5.', min=0.01, max=1.0,
+              read_only=True),
+        Param('max_speed', 1.0, 'Speed limit (m/s).', min=0.05, max=5.0, read_only=True),
+        Param('spin_rate', 0.6, 'Turret spin (rad/s) sweeping the ring over its gaps.',
+              min=0.0, max=3.0, read_only=True),
+        Param('replan_period', 1.5, 'Decomposition rebuild period (s, sim time).', min=0.1,
+              max=30.0, read_only=True),
+        Param('sonar_timeout', 0.5, 'Stop when no sweep for this long (s, sim time).',
+              min=0.05, max=10.0, read_only=True),
+        Param('range_margin', 0.3, 'Margin kept off delta by the decomposition (m); '
+              'extended detector only.',
+              min=0.0, max=10.0, read_only=True),
+        Param('clearance_margin', 0.1, 'Extra clearance beyond radius for paths (m); '
+              'extended detector only (the baseline uses radius / 10).',
+              min=0.0, max=2.0, read_only=True),
+        Param('marker_period', 5.0, 'Marker publication period (s, sim time).', min=0.1,
+              max=600.0),
+        Param('marker_stride', 0.4, 'Spacing of the cell markers (m).', min=0.05, max=5.0),
+    )
+
+    def __init__(self, node_name='coverage_planner', **kwargs):
+        super().__init__(node_name, **kwargs)
+        p = self.params
+        common = dict(max_speed=p.max_speed, spin_rate=p.spin_rate,
+                      replan_period=p.replan_period, sonar_timeout=p.sonar_timeout)
+        if p.detector == 'robot':
+            self.config = robot_size_config(p.radius, **common)
+        else:
+            self.config = PlannerConfig(
+                delta=p.delta, radius=p.radius, detector=p.detector, resolution=p.resolution,
+                range_margin=p.range_margin, clearance_margin=p.clearance_margin, **common)
+        self.driver = PlannerDriver(self.config, p.beam_width)
+        self.cmd_pub = self.create_publisher(Twist, 'cmd_vel', STATE_QOS)
+        self.status_pub = self.create_publisher(DiagnosticArray, '/coverage/status',
+                                                LATCHED_QOS)
+        self.graph_pub = self.create_publisher(String, '/coverage/graph', LATCHED_QOS)
+        self.marker_pub = self.create_publisher(MarkerArray, '/coverage/markers', LATCHED_QOS)
+        self.create_subscription(Odometry, 'odom', self._on_odom, SENSOR_QOS)
+        self.create_subscription(LaserScan, 'sonar/scan', self._on_scan, SENSOR_QOS)
+        self.create_timer(0.1, self._on_timer)
+        self.state = None
+        self.error = None
+        self.path = []
+        self._last_plan = None
+        self._last_markers = -math.inf
+        self.update_times = []          # wall seconds per processed sweep (benchmark)
+
+    def check_params(self, values):
+        if values['detector'] == 'extended' and not values['delta'] > values['radius']:
+            return (f"parameter 'delta' = {values['delta']} must be greater than "
+                    f"'radius' = {values['radius']}")
+        if values['resolution'] > values['radius']:
+            return (f"parameter 'resolution' = {values['resolution']} must not exceed "
+                    f"'radius' = {values['radius']}")
+        return None
+
+    @property
+    def planner(self):
+        return self.driver.planner
+
+    def _on_odom(self, msg):
+        t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        x, y = msg.pose.pose.position.x, msg.pose.pose.position.y
+        self.driver.on_odometry(t, x, y, yaw_of(msg.pose.pose.orientation))
+        if not self.path or math.hypot(x - self.path[-1][0], y - self.path[-1][1]) > 0.2:
+            self.path.append((x, y))
+
+    def _on_scan(self, msg):
+        if self.error:
+            return
+        t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        n = len(msg.ranges)
+        angles = msg.angle_min + msg.angle_increment * np.arange(n)
+        start = time.perf_counter()
+        try:
+            cmd = self.driver.on_scan(t, np.asarray(msg.ranges, dtype=float), angles,
+                                      msg.range_min, msg.range_max)
+        except UserError as exc:
+            self.error = str(exc)
+            self.get_logger().error(self.error)
+            self.cmd_pub.publish(Twist())
+            self._status('error', self.error)
+            return
+        if cmd is not None:
+            self.update_times.append(time.perf_counter() - start)
+            self._publish(cmd)
+
+    def _on_timer(self):
+        cmd = self.driver.on_timer(self.get_clock().now().nanoseconds * 1e-9)
+        if cmd is not None:
+            self._publish(cmd)
+
+    def _publish(self, cmd):
+        twist = Twist()
+        twist.linear.x, twist.linear.y, twist.angular.z = cmd.vx, cmd.vy, cmd.wz
+        self.cmd_pub.publish(twist)
+        p = self.planner
+        event = p.events[-1] if p.events else None
+        if cmd.state != self.state:
+            self._status(cmd.state, event[4] if event else cmd.state)
+            if cmd.state in ('done', 'stuck', 'waiting_for_sonar'):
+                self.get_logger().info(f'coverage planner: {cmd.state}: '
+                                       f'{event[4] if event else ""}')
+        if p.t_plan != self._last_plan:
+            self._last_plan = p.t_plan
+            self.graph_pub.publish(String(data=json.dumps(p.graph.to_dict())))
+            now = p.t_plan
+            if now - self._last_markers >= self.params.marker_period or cmd.state == 'done':
+                self._last_markers = now
+                self.marker_pub.publish(self.markers())
+
+    def _status(self, state, message):
+        self.state = state
+        p = self.planner
+        st = p.status() if p is not None else {'state': state}
+        arr = DiagnosticArray()
+        arr.header.stamp = self.get_clock().now().to_msg()
+        arr.status.append(DiagnosticStatus(
+            level=LEVEL.get(state, DiagnosticStatus.OK), name='coverage_planner',
+            message=str(message), hardware_id='coverage_robot',
+            values=[KeyValue(key=k, value=json.dumps(v)) for k, v in st.items()]
+            + [KeyValue(key='state_now', value=state)]))
+        self.status_pub.publish(arr)
+
+    # ------------------------------------------------------------------ visualisation
+
+    def markers(self):
+        """MarkerArray of the last decomposition (frame odom)."""
+        p = self.planner
+        arr = MarkerArray()
+        stamp = self.get_clock().now().to_msg()
+        clear = Marker()
+        clear.action = Marker.DELETEALL
+        arr.markers.append(clear)
+
+        def marker(ns, mtype, color, scale, mid=0):
+            m = Marker()
+            m.header.frame_id = 'odom'
+            m.header.stamp = stamp
+            m.ns, m.id, m.type, m.action = ns, mid, mtype, Marker.ADD
+            m.pose.orientation.w = 1.0
+            m.scale.x = m.scale.y = m.scale.z = scale
+            m.color = ColorRGBA(r=color[0], g=color[1], b=color[2], a=color[3])
+            arr.markers.append(m)
+            return m
+
+        d = p.last if p is not None else {}
+        if d:
+            k = max(1, int(round(self.params.marker_stride / p.grid.res)))
+            for ns, key, color in (('vast_cells', 'vast', (0.6, 0.6, 0.6, 0.5)),
+                                   ('narrow_cells', 'narrow', (0.7, 0.85, 1.0, 0.5))):
+                m = marker(ns, Marker.CUBE_LIST, color, k * p.grid.res)
+                m.scale.z = 0.02
+                sub = np.zeros_like(d[key])
+                sub[::k, ::k] = d[key][::k, ::k]
+                rr, cc = np.nonzero(sub)
+                m.points = [Point(x=float(x), y=float(y)) for x, y in d['to_world'](rr, cc)]
+            m = marker('gvd', Marker.POINTS, (0.1, 0.3, 1.0, 1.0), p.grid.res)
+            rr, cc = np.nonzero(d['gvd'])
+            m.points = [Point(x=float(x), y=float(y), z=0.05) for x, y in d['to_world'](rr, cc)]
+            nodes = [n for n in p.graph.alive()]
+            m = marker('critical_points', Marker.SPHERE_LIST, (0.0, 0.0, 0.0, 1.0), 0.25)
+            m.points = [Point(x=q[0], y=q[1], z=0.1) for n in nodes for q in n.reeb_points]
+            m = marker('meet_points', Marker.SPHERE_LIST, (0.5, 0.5, 0.5, 1.0), 0.3)
+            m.points = [Point(x=q[0], y=q[1], z=0.1) for n in nodes for q in n.meet_points]
+            cusps = [c for (v, n), cs in p.graph.edges.items()
+                     if p.graph.nodes[v].alive and p.graph.nodes[n].alive for c in cs]
+            m = marker('cusp_points', Marker.SPHERE_LIST, (1.0, 1.0, 1.0, 1.0), 0.3)
+            m.points = [Point(x=c[0], y=c[1], z=0.1) for c in cusps]
+            m = marker('graph_edges', Marker.LINE_LIST, (0.6, 0.0, 0.6, 1.0), 0.05)
+            for (v, n), cs in p.graph.edges.items():
+                a, b = p.graph.nodes[v], p.graph.nodes[n]
+                if a.alive and b.alive:
+                    for c in cs:
+                        for u, w in ((a.centroid, c), (c, b.centroid)):
+                            m.points += [Point(x=u[0], y=u[1], z=0.2),
+                                         Point(x=w[0], y=w[1], z=0.2)]
+            for i, n in enumerate(nodes):
+                t = marker('graph_nodes', Marker.TEXT_VIEW_FACING,
+                           (0.3, 0.3, 0.3, 1.0) if n.kind == 'vast' else (0.2, 0.4, 1.0, 1.0),
+                           0.5, mid=i)
+                t.pose.position.x, t.pose.position.y, t.pose.position.z = (
+                    n.centroid[0], n.centroid[1], 0.5)
+                t.text = f"{'V' if n.kind == 'vast' else 'N'}{n.id}" + (
+                    '' if n.covered else '*')
+        m = marker('path', Marker.LINE_STRIP, (0.0, 0.7, 0.0, 1.0), 0.05)
+        m.points = [Point(x=x, y=y) for x, y in self.path]
+        if p is not None and p.path:
+            m = marker('plan', Marker.LINE_STRIP, (1.0, 0.5, 0.0, 1.0), 0.05)
+            m.points = [Point(x=float(x), y=float(y), z=0.02) for x, y in p.path]
+        return arr
+
+
+def main(args=None):
+    run_node(CoveragePlannerNode, args)
+
+
+if __name__ == '__main__':
+    main()

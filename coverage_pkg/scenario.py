@@ -1,0 +1,231 @@
+"""``paramotion coverage`` and ``paramotion coverage-benchmark``: the coverage graph headless.
+
+``coverage`` composes the simulator, the sonar ring, the planner and the monitor in one
+executor and runs them lock-step on sim time (as fast as the machine allows) until the planner
+reports completion (or a stuck robot) or ``--max-sim-time``; it writes ``DIR/bag/`` (MCAP),
+``DIR/result.json`` and ``DIR/coverage.png``. ``--detector robot`` runs the robot-size
+baseline of Section II on the same world.
+
+``coverage-benchmark`` runs the same graph without recording and prints the planner update time
+per sonar sweep (median, p99) and the whole-run wall time against sim time.
+"""
+import datetime
+import math
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+from coverage_pkg.planner import PlannerConfig
+from coverage_pkg.sonar import SonarRing
+from coverage_pkg.world import load_world
+from paramotion.errors import UserError
+from paramotion.scenario_io import add_output_args, output_dir, write_json
+
+# /sonar/ranges (16 Range messages per sweep) is not recorded by default: in a lock-step Graph
+# most of each burst is dropped before it reaches the recorder (see docs/coverage.md); the same
+# sweep is recorded whole as /sonar/scan. Add it with --record-topics if wanted.
+TOPICS = ['/clock', '/coverage/ground_truth', '/odom', '/sonar/scan', '/cmd_vel',
+          '/coverage/status', '/coverage/graph', '/coverage/markers',
+          '/coverage/covered_fraction']
+
+
+def validate_inputs(world_path, delta, radius, detector, sonar_max_range, max_sim_time=1.0):
+    """Check every input before anything runs; raise UserError with one line if bad."""
+    for name, v in (('--delta', delta), ('--radius', radius), ('--sonar-max-range',
+                                                               sonar_max_range),
+                    ('--max-sim-time', max_sim_time)):
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            raise UserError(f'{name} {v}: must be a positive number')
+    if detector == 'extended' and not delta > radius:
+        raise UserError(f'--delta {delta:g}: must be greater than --radius {radius:g}')
+    SonarRing(max_range=sonar_max_range).validate(delta if detector == 'extended' else None)
+    PlannerConfig(delta=delta, radius=radius, detector=detector).validate(
+        sonar_max_range if detector == 'extended' else None)
+    return load_world(world_path, radius=radius)
+
+
+def run_coverage(world_path, delta=2.0, radius=0.25, detector='extended', bag_dir=None,
+                 max_sim_time=3000.0, sonar_max_range=5.0, seed=1, sonar_params=None,
+                 planner_params=None, topics=None, domain_id=None):
+    """Run the coverage graph lock-step and return the result dict (see ``_run``).
+
+    ``bag_dir`` records ``topics`` (default :data:`TOPICS`); extra node parameters go in
+    ``sonar_params`` / ``planner_params``.
+    """
+    from coverage_pkg.monitor_node import CoverageMonitorNode
+    from coverage_pkg.planner_node import CoveragePlannerNode
+    from coverage_pkg.sim_node import CoverageSimNode
+    from coverage_pkg.sonar_node import CoverageSonarNode
+    from paramotion.graph import Graph
+
+    world = validate_inputs(world_path, delta, radius, detector, sonar_max_range, max_sim_time)
+    det_range = radius if detector == 'robot' else delta
+    wall0 = time.monotonic()
+    with Graph(domain_id=domain_id) as graph:
+        sim = graph.add(CoverageSimNode, world=str(world_path), radius=float(radius))
+        graph.add(CoverageSonarNode, world=str(world_path), max_range=float(sonar_max_range),
+                  seed=int(seed), **(sonar_params or {}))
+        planner = graph.add(CoveragePlannerNode, delta=float(delta), radius=float(radius),
+                            detector=detector, **(planner_params or {}))
+        monitor = graph.add(CoverageMonitorNode, world=str(world_path), radius=float(radius),
+                            delta=float(det_range))
+        if bag_dir is not None:
+            graph.record(bag_dir, topics or TOPICS)
+
+        def finished():
+            p = planner.planner
+            return p is not None and p.state in ('done', 'stuck')
+        outcome = graph.run_lockstep(sim, until=finished, max_sim_time=max_sim_time)
+        # One more period so the final status, markers and monitor figures are published, and a
+        # moment of wall time for the recorder to receive the last messages.
+        sim.advance()
+        graph.drain()
+        monitor.publish()
+        graph.drain()
+        if bag_dir is not None:
+            graph.spin_wall(0.3)
+        p = planner.planner
+        wall = time.monotonic() - wall0
+        path = np.asarray(monitor.path)
+        length = float(np.sum(np.hypot(*np.diff(path, axis=0).T))) if len(path) > 1 else 0.0
+        ut = np.asarray(planner.update_times) * 1e3
+        sx, sy = map(float, world.start)
+        graph_dict = _shift_graph(p.graph.to_dict(), sx, sy) if p is not None else None
+        lower = monitor.cvs.lower_bound_path()
+        result = {
+            'world': str(world_path), 'world_name': world.name, 'detector': detector,
+            'delta_m': delta, 'radius_m': radius, 'detector_range_m': det_range,
+            'sonar_max_range_m': sonar_max_range,
+            'outcome': 'complete' if p is not None and p.state == 'done' else (
+                p.state if p is not None and p.state == 'stuck' else outcome),
+            'planner_state': p.state if p is not None else 'no_sweep',
+            'sim_time_s': sim.sim_time, 'wall_time_s': wall,
+            'covered_fraction_of_cvs': monitor.fraction,
+            'cvs_area_m2': monitor.cvs.area,
+            'path_length_m': length, 'lower_bound_path_m': lower,
+            'path_over_lower_bound': length / lower if lower > 0 else None,
+            'planner_update_ms': {'median': float(np.median(ut)) if len(ut) else None,
+                                  'p99': float(np.percentile(ut, 99)) if len(ut) else None,
+                                  'sweeps': int(len(ut))},
+            'hierarchical_graph': graph_dict,
+            'decisions': [list(d) for d in (p.decisions if p is not None else [])],
+            'events': [list(e) for e in (p.events if p is not None else [])
+                       if e[1] != 'cusp_sensed'],
+            'frames': 'path and graph in map; the planner works in odom (origin at start)',
+            'path': np.round(path, 3).tolist(),
+        }
+        layers = None
+        if p is not None:
+            from coverage_pkg.figure import planner_layers
+            layers = planner_layers(p)
+            if layers:
+                e = layers['extent']
+                layers['extent'] = (e[0] + sx, e[1] + sx, e[2] + sy, e[3] + sy)
+        result['_layers'] = layers
+        result['_uncovered'] = monitor.acc.uncovered_points()
+        return result
+
+
+def _shift_graph(g, dx, dy):
+    """Graph dict from the odom frame (origin at the start) into the map frame."""
+    def sh(p):
+        return [p[0] + dx, p[1] + dy] + list(p[2:])
+    for n in g['nodes']:
+        n['anchor'] = sh(n['anchor'])
+        n['centroid'] = sh(n['centroid'])
+        n['critical_points'] = [sh(c) for c in n['critical_points']]
+        n['meet_points'] = [sh(c) for c in n['meet_points']]
+    for e in g['edges']:
+        e['cusp_points'] = [sh(c) for c in e['cusp_points']]
+    return g
+
+
+def _run(args):
+    validate_inputs(args.world, args.delta, args.radius, args.detector, args.sonar_max_range,
+                    args.max_sim_time)
+    with output_dir(args.out, args.overwrite) as tmp:
+        topics = [t for t in (args.record_topics or '').split(',') if t] or None
+        result = run_coverage(args.world, args.delta, args.radius, args.detector,
+                              bag_dir=tmp / 'bag', max_sim_time=args.max_sim_time,
+                              sonar_max_range=args.sonar_max_range, seed=args.seed,
+                              topics=topics, domain_id=args.domain_id)
+        layers = result.pop('_layers')
+        uncovered = result.pop('_uncovered')
+        write_json(tmp / 'result.json', result)
+        from coverage_pkg.figure import render_coverage
+        world = load_world(args.world)
+        title = (f"{world.name}: {args.detector} detector (range {result['detector_range_m']:g}"
+                 f" m), path {result['path_length_m']:.1f} m (lower bound "
+                 f"{result['lower_bound_path_m']:.1f} m), covered "
+                 f"{100 * result['covered_fraction_of_cvs']:.2f}% of CVS, "
+                 f"{result['outcome']}")
+        render_coverage(tmp / 'coverage.png', world, result['path'],
+                        result['hierarchical_graph'], layers, uncovered, title)
+    print(f"coverage {result['world_name']} ({args.detector} detector): {result['outcome']} "
+          f"after {result['sim_time_s']:.1f} s sim time in {result['wall_time_s']:.1f} s wall")
+    print(f"covered {100 * result['covered_fraction_of_cvs']:.2f}% of CVS "
+          f"({result['cvs_area_m2']:.1f} m^2); path {result['path_length_m']:.1f} m, lower "
+          f"bound |CVS|/(2 range) {result['lower_bound_path_m']:.1f} m "
+          f"(ratio {result['path_over_lower_bound']:.2f})")
+    print(f'result: {Path(args.out) / "result.json"}; picture: '
+          f'{Path(args.out) / "coverage.png"}')
+    return 0 if result['outcome'] == 'complete' else 1
+
+
+def _bench(args):
+    validate_inputs(args.world, args.delta, args.radius, args.detector, args.sonar_max_range,
+                    args.max_sim_time)
+    result = run_coverage(args.world, args.delta, args.radius, args.detector, bag_dir=None,
+                          max_sim_time=args.max_sim_time,
+                          sonar_max_range=args.sonar_max_range, seed=args.seed,
+                          domain_id=args.domain_id)
+    u = result['planner_update_ms']
+    print(f"coverage benchmark {result['world_name']} ({args.detector} detector), "
+          f"{result['outcome']}")
+    print(f"planner update per sonar sweep: median {u['median']:.2f} ms, p99 {u['p99']:.2f} ms "
+          f"over {u['sweeps']} sweeps (target: median < 5 ms)")
+    print(f"whole run: {result['wall_time_s']:.1f} s wall for {result['sim_time_s']:.1f} s sim "
+          f"(x{result['sim_time_s'] / max(result['wall_time_s'], 1e-9):.1f} real time)")
+    print(f"covered {100 * result['covered_fraction_of_cvs']:.2f}% of CVS, path "
+          f"{result['path_length_m']:.1f} m")
+    return 0
+
+
+def _common(parser):
+    parser.add_argument('--world', required=True, help='world JSON file')
+    parser.add_argument('--delta', type=float, default=2.0, help='detector range (m)')
+    parser.add_argument('--radius', type=float, default=0.25, help='robot radius (m)')
+    parser.add_argument('--detector', choices=('extended', 'robot'), default='extended',
+                        help='extended-range detector (hierarchical decomposition) or the '
+                        'robot-size baseline (plain boustrophedon)')
+    parser.add_argument('--sonar-max-range', type=float, default=5.0,
+                        help='sonar max range (m); must exceed --delta')
+    parser.add_argument('--max-sim-time', type=float, default=4000.0,
+                        help='sim-time limit (s)')
+    parser.add_argument('--seed', type=int, default=1, help='sonar noise seed')
+    parser.add_argument('--domain-id', type=int, default=None,
+                        help='DDS domain of the run (default: $ROS_DOMAIN_ID, else a random '
+                        'one in 101..232 so concurrent runs stay apart)')
+
+
+def register(subparsers):
+    """Add ``paramotion coverage`` and ``paramotion coverage-benchmark``."""
+    stamp = datetime.datetime.now().strftime('%Y%m%d-%H%M%S')
+    parser = subparsers.add_parser(
+        'coverage', help='sensor-based coverage with an extended-range detector',
+        description='Run the coverage graph (PyBullet robot, sonar ring, online planner, '
+        'monitor) headless on sim time; write bag/, result.json and coverage.png.')
+    _common(parser)
+    add_output_args(parser, default_out=os.path.join('bags', 'runs', f'coverage-{stamp}'))
+    parser.add_argument('--record-topics', default='',
+                        help='comma-separated topics to record (default: ' + ','.join(TOPICS)
+                        + ')')
+    parser.set_defaults(func=_run)
+    bench = subparsers.add_parser(
+        'coverage-benchmark', help='time the coverage planner and the whole graph',
+        description='Run the coverage graph without recording; print the planner update time '
+        'per sonar sweep (median, p99) and wall time against sim time.')
+    _common(bench)
+    bench.set_defaults(func=_bench)

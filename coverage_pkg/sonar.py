@@ -1,0 +1,140 @@
+"""Sonar ring: the forward (simulation) model and the inverse (mapping) model.
+
+The robot carries a ring of ``count`` ultrasonic transducers at its centre, evenly spaced, each
+a cone of full angle ``beam_width`` (REP 117 ``field_of_view``). A transducer reports the range
+of the first echo, i.e. the nearest wall inside its cone. Readings follow REP 117:
+
+* a finite value in ``[min_range, max_range]`` is an echo;
+* ``+inf`` means no echo within ``max_range`` (the whole cone is free out to ``max_range``);
+* ``-inf`` means an object closer than ``min_range``;
+* ``NaN`` means an invalid reading and carries no information.
+
+The inverse model turns one reading into evidence for an occupancy grid: every cell of the cone
+closer than the echo is free (the echo is the *first* one) and the arc at the echo range holds
+an obstacle somewhere. Free evidence is reliable, arc evidence is smeared over the beam width;
+a log-odds grid (:mod:`coverage_pkg.mapping`) fuses both over many poses.
+"""
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from paramotion.errors import UserError
+
+
+@dataclass
+class SonarRing:
+    """Geometry and error model of a ring of ultrasonic range sensors."""
+
+    count: int = 16
+    beam_width: float = 0.2        # rad, full cone angle
+    min_range: float = 0.05        # m
+    max_range: float = 5.0         # m
+    noise_std: float = 0.01        # m, Gaussian range noise
+    rays_per_beam: int = 7         # rays cast per cone by the simulator
+
+    def mount_angles(self):
+        """Transducer axis angles in the robot frame (rad), counter-clockwise from +x."""
+        return 2.0 * math.pi * np.arange(self.count) / self.count
+
+    def validate(self, delta=None):
+        """Raise UserError if the ring is inconsistent, or cannot see as far as ``delta``."""
+        if self.count < 3:
+            raise UserError(f'sonar count {self.count} must be at least 3')
+        if not 0.0 < self.beam_width < math.pi:
+            raise UserError(f'sonar beam_width {self.beam_width} must be in (0, pi) rad')
+        if not 0.0 <= self.min_range < self.max_range:
+            raise UserError(f'sonar min_range {self.min_range} must be in [0, max_range)')
+        if self.noise_std < 0.0:
+            raise UserError(f'sonar noise_std {self.noise_std} must be >= 0')
+        if delta is not None and not self.max_range > delta:
+            raise UserError(f'sonar max_range {self.max_range:g} m must exceed the detector '
+                            f'range delta {delta:g} m')
+
+
+def simulate_ring(world, pose, ring, rng=None):
+    """Readings of every transducer of ``ring`` at ``pose`` = (x, y, yaw) in ``world``.
+
+    Each cone is sampled by ``rays_per_beam`` exact ray casts; the reading is the nearest hit
+    (the first echo) plus Gaussian noise, mapped to REP 117 (+inf beyond ``max_range``, -inf
+    below ``min_range``).
+    """
+    x, y, yaw = pose
+    offs = np.linspace(-0.5, 0.5, ring.rays_per_beam) * ring.beam_width
+    angles = yaw + ring.mount_angles()[:, None] + offs[None, :]
+    far = ring.max_range * 2.0
+    true = world.raycast((x, y), angles, far).min(axis=1)
+    out = true.copy()
+    if rng is not None and ring.noise_std > 0.0:
+        out = out + rng.normal(0.0, ring.noise_std, out.shape)
+    # REP 117 as in paramotion.range_sensing.rep117_reading: the true distance decides
+    # +inf / -inf, a valid noisy value is clipped into [min_range, max_range].
+    out = np.clip(out, ring.min_range, ring.max_range)
+    out[true > ring.max_range] = math.inf
+    out[true < ring.min_range] = -math.inf
+    return out
+
+
+def yaw_of(q):
+    """Yaw (rad) of a quaternion with fields x, y, z, w (e.g. geometry_msgs/Quaternion)."""
+    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+
+
+def reading_kind(value, min_range, max_range):
+    """Classify one REP 117 reading: 'echo', 'no_echo', 'too_close' or 'invalid'."""
+    if value is None or math.isnan(value):
+        return 'invalid'
+    if value == math.inf:
+        return 'no_echo'
+    if value == -math.inf:
+        return 'too_close'
+    if min_range <= value <= max_range:
+        return 'echo'
+    return 'invalid'
+
+
+def sweep_evidence(pose, ranges, mount_angles, beam_width, min_range, max_range, resolution,
+                   noise_std=0.01, arc_fraction=0.35):
+    """Inverse sonar model for one sweep of the ring.
+
+    Returns ``(free_xy, occ_xy, valid)``: sample points of cells that the sweep shows free and
+    of cells on echo arcs, and how many readings carried information. Only the central
+    ``arc_fraction`` of an echo arc is marked occupied: the echo comes from the *nearest* point
+    in the cone, so the rest of the arc usually lies in front of the wall, in free space, and
+    marking it would thicken every wall. A wall point at the edge of one cone is on the axis of
+    another as the ring turns; until then it stays unknown, which the planner treats as an
+    obstacle. Readings classified 'invalid' (NaN, out of range) and 'too_close' (-inf) add
+    nothing.
+    """
+    x, y, yaw = pose
+    r = np.asarray(ranges, dtype=float)
+    mount = np.asarray(mount_angles, dtype=float)
+    with np.errstate(invalid='ignore'):
+        echo = np.isfinite(r) & (r >= min_range) & (r <= max_range)
+    no_echo = r == math.inf
+    use = echo | no_echo                     # NaN, -inf and out-of-range values carry nothing
+    valid = int(use.sum())
+    if valid == 0:
+        return np.zeros((0, 2)), np.zeros((0, 2)), 0
+    gap = max(2.0 * noise_std, resolution)
+    reach = np.where(echo, r, max_range)[use]
+    free_len = np.where(echo, r - gap, max_range)[use]
+    is_echo = echo[use]
+    # All cones at once: n_sub rays across each cone (enough for one sample per cell across
+    # the widest arc), samples every 0.7 cell along each ray up to the free length.
+    n_sub = max(3, int(math.ceil(beam_width * max_range / resolution)) + 1)
+    offs = np.linspace(-0.5, 0.5, n_sub)
+    th = yaw + mount[use][:, None] + offs[None, :] * beam_width          # (k, n_sub)
+    c, s = np.cos(th), np.sin(th)
+    t = np.arange(0.0, max_range, 0.7 * resolution)
+    keep = t[None, :] < free_len[:, None]                                 # (k, n_t)
+    kk, tt = np.nonzero(keep)
+    fx = x + c[kk, :] * t[tt, None]                                       # (m, n_sub)
+    fy = y + s[kk, :] * t[tt, None]
+    free_xy = np.stack([fx.ravel(), fy.ravel()], axis=1)
+    mid = np.abs(offs) <= 0.5 * arc_fraction + 1e-9
+    if not mid.any():
+        mid[n_sub // 2] = True
+    ce, se, re = c[is_echo][:, mid], s[is_echo][:, mid], reach[is_echo][:, None]
+    occ_xy = np.stack([(x + ce * re).ravel(), (y + se * re).ravel()], axis=1)
+    return free_xy, occ_xy, valid

@@ -1,0 +1,118 @@
+"""The online planner in a ROS-free closed loop: coverage, unseen worlds, faults (REP 117 values,
+sonar silence, a stuck robot)."""
+import math
+
+import numpy as np
+import pytest
+
+from coverage_pkg.baseline import robot_size_config
+from coverage_pkg.kinematic import run_kinematic
+from coverage_pkg.planner import CoveragePlanner, PlannerConfig
+from coverage_pkg.sonar import SonarRing, simulate_ring
+from coverage_pkg.world import random_world, world_from_dict
+
+SMALL = {'name': 'small', 'boundary': [[0, 0], [9, 0], [9, 6], [0, 6]],
+         'obstacles': [[[4, 2.5], [5.5, 2.5], [5.5, 3.5], [4, 3.5]]], 'start': [1.0, 1.0]}
+
+# An L-shaped room with a corridor: vast and narrow cells, cusp points, a dead end.
+L_ROOM = {'name': 'l_room', 'boundary': [[0, 0], [8, 0], [8, 2], [3, 2], [3, 9], [0, 9]],
+          'obstacles': [], 'start': [1.5, 1.0]}
+
+
+def test_small_world_is_covered_and_planner_says_done():
+    r = run_kinematic(world_from_dict(SMALL), max_time=600)
+    assert r['state'] == 'done'
+    assert r['covered_fraction'] >= 0.99
+    assert r['path_length'] >= r['lower_bound']          # the bound is a bound
+    p = r['planner']
+    kinds = {n.kind for n in p.graph.alive()}
+    assert kinds == {'vast', 'narrow'}
+    assert p.graph.edges                                   # cusp points link them
+    vast = [n for n in p.graph.alive('vast')]
+    assert any(n.reeb_points and n.reeb_edges for n in vast)   # each with its Reeb graph
+    assert p.graph.find_uncovered_node(vast[0].id) is None    # nothing left: FindUncoveredNode
+    assert p.events[-1][1] == 'done'
+
+
+@pytest.mark.parametrize('seed', [7, 11])
+def test_unseen_random_worlds_are_covered(seed):
+    world = random_world(seed, size=(10.0, 8.0), n_obstacles=2)
+    r = run_kinematic(world, max_time=900, seed=seed)
+    assert r['state'] == 'done', r['planner'].events[-3:]
+    assert r['covered_fraction'] >= 0.99
+
+
+def test_narrow_corridor_world_with_robot_size_detector_baseline():
+    world = world_from_dict(L_ROOM)
+    ext = run_kinematic(world, PlannerConfig(delta=2.0), max_time=900)
+    base = run_kinematic(world, robot_size_config(0.25), max_time=1500)
+    assert ext['state'] == 'done' and base['state'] == 'done'
+    assert ext['covered_fraction'] >= 0.99
+    # A robot-size detector only sweeps the wall band if the robot grazes the walls, which a
+    # sonar-built map does not allow to within a few cm: the baseline misses that band.
+    assert base['covered_fraction'] >= 0.85
+    assert ext['path_length'] < 0.5 * base['path_length']
+
+
+def test_nan_and_infinite_readings_are_survived():
+    """30 % of readings NaN (invalid), some +inf (no echo) and -inf (too close): REP 117."""
+    rng = np.random.default_rng(5)
+
+    def corrupt(t, ranges):
+        out = ranges.copy()
+        u = rng.random(len(out))
+        out[u < 0.3] = math.nan
+        out[(u >= 0.3) & (u < 0.33)] = -math.inf
+        return out
+    r = run_kinematic(world_from_dict(SMALL), max_time=900, corrupt=corrupt)
+    assert r['state'] == 'done'
+    assert r['covered_fraction'] >= 0.99
+
+
+def test_all_nan_sweeps_do_not_move_the_robot_blindly():
+    r = run_kinematic(world_from_dict(SMALL), max_time=5,
+                      corrupt=lambda t, x: np.full_like(x, math.nan))
+    assert r['path_length'] == 0.0
+    assert r['planner'].sweeps == 0
+    assert r['planner'].state == 'waiting_for_sonar'     # invalid readings count as silence
+
+
+def test_sonar_silence_stops_the_robot_and_coverage_resumes():
+    states = []
+
+    def watch(t, planner, cmd):
+        states.append((round(t, 3), cmd.state, math.hypot(cmd.vx, cmd.vy)))
+    r = run_kinematic(world_from_dict(SMALL), max_time=600,
+                      dropout=lambda t: 10.0 <= t < 13.0, on_step=watch)
+    # The last sweep is at t = 9.9: the robot stops once 0.5 s have passed without one.
+    silent = [s for s in states if 10.45 <= s[0] < 13.0]
+    assert silent and all(s[1] == 'waiting_for_sonar' and s[2] == 0.0 for s in silent)
+    before = [s for s in states if 10.0 <= s[0] < 10.35]
+    assert before and all(s[1] != 'waiting_for_sonar' for s in before)
+    kinds = [e[1] for e in r['planner'].events]
+    assert 'sonar_timeout' in kinds and 'sonar_resumed' in kinds
+    assert r['state'] == 'done' and r['covered_fraction'] >= 0.99
+
+
+def test_a_stuck_robot_is_reported_not_looped_on():
+    world = world_from_dict(SMALL)
+    ring = SonarRing()
+    cfg = PlannerConfig(stuck_time=2.0, max_stuck=3)
+    p = CoveragePlanner(cfg, ring.mount_angles(), ring.beam_width, ring.min_range,
+                        ring.max_range)
+    t = 0.0
+    cmd = None
+    while t < 60.0:
+        # The turret turns as commanded, the base is blocked: x and y never change.
+        pose = (1.0, 1.0, math.remainder(cfg.spin_rate * t, 2 * math.pi))
+        p.on_odometry(t, *pose)
+        p.on_sweep(t, simulate_ring(world, pose, ring))
+        cmd = p.update(t)
+        if cmd.state == 'stuck':
+            break
+        t += 0.1
+    assert cmd.state == 'stuck'
+    assert (cmd.vx, cmd.vy, cmd.wz) == (0.0, 0.0, 0.0)
+    assert sum(1 for e in p.events if e[1] == 'stuck') == 3
+    assert t < 20.0
+    assert p.update(t + 1.0).state == 'stuck'      # and stays stopped
