@@ -114,13 +114,22 @@ def register(subparsers):
     p.add_argument('--out', required=True, help='output directory')
     p.set_defaults(func=_wrench)
 
-    p = sub.add_parser('arrangements', help='search corner-to-corner cable arrangements',
-                       description='Enumerate the corner-to-corner pairings with the '
-                                   'half-turn symmetry of section IV-A for the dimensions of '
-                                   '--robot and score them at zero rotation (collision-free '
-                                   'and wrench-closed shares): the search behind the shipped '
-                                   'Neuron. Writes DIR/result.json with --out.')
+    p = sub.add_parser('arrangements', help='search cable arrangements (the derived Neuron)',
+                       description='Search the cable arrangements behind the shipped Neuron for '
+                                   'the dimensions of --robot: frame anchors on the frame edges '
+                                   '(--pitch), symmetric under the half turns about x, y and z, '
+                                   'wrench-closed and collision-free at the home pose, ranked by '
+                                   'the collision-free and wrench-closed share of the grid x '
+                                   '(+-30, +-30, +-10 deg) box. With --corners: the older search '
+                                   'of corner-to-corner pairings at zero rotation. Writes '
+                                   'DIR/result.json with --out.')
     robot_arg(p)
+    p.add_argument('--corners', action='store_true',
+                   help='search corner-to-corner pairings instead (zero rotation only)')
+    p.add_argument('--pitch', type=float, default=0.1,
+                   help='anchor spacing along the frame edges in m (default 0.1)')
+    p.add_argument('--min-gap', type=float, default=0.02,
+                   help='smallest cable surface gap at the home pose in m (default 0.02)')
     p.add_argument('--step', type=float, default=0.2, help='grid step in m (default 0.2)')
     p.add_argument('--top', type=int, default=12, help='rows to print (default 12)')
     p.add_argument('--out', help='optional directory for result.json')
@@ -571,6 +580,61 @@ def _wrench_figure(desc, axes, free, closed, rot):
 
 
 def _arrangements(args):
+    if args.corners:
+        return _corner_arrangements(args)
+    from cable_robot_pkg.cdrpm.arrangements import search_edge_arrangements, symmetric_cables
+    from cable_robot_pkg.cdrpm.description import load_description, shipped_descriptions
+
+    desc = _robot(args)
+    _check_step(desc, args.step)
+    _finite('--pitch', args.pitch, 0.01, float(np.max(desc.frame_half_size)))
+    _finite('--min-gap', args.min_gap, 0.0, 1.0)
+    if not 1 <= args.top <= 1000:
+        raise UserError(f'--top {args.top}: allowed [1, 1000]')
+    out = _out_dir(args.out) if args.out else None
+    rows, stats = search_edge_arrangements(desc.frame_half_size, desc.platform_half_size,
+                                           desc.cable_radius, pitch=args.pitch,
+                                           min_home_gap=args.min_gap, step=args.step,
+                                           progress=True)
+    shipped = {}
+    for path in shipped_descriptions():
+        other = load_description(path)
+        key = frozenset(zip(map(tuple, np.round(other.platform_points, 9)),
+                            map(tuple, np.round(other.frame_points, 9))))
+        shipped[key] = other.name
+    for rank, row in enumerate(rows, 1):
+        signs, anchors = symmetric_cables(row['anchor0'], row['anchor1'])
+        key = frozenset(zip(map(tuple, np.round(signs * desc.platform_half_size, 9)),
+                            map(tuple, np.round(anchors, 9))))
+        row['rank'] = rank
+        row['shipped_as'] = shipped.get(key)
+    print(f'{stats["pairs"]:,} anchor pairs on the frame edges (pitch {args.pitch} m); '
+          f'{stats["distinct_up_to_symmetry"]:,} distinct arrangements with the required '
+          f'properties; {stats["home_closed_and_free"]:,} wrench-closed and collision-free at '
+          f'home; {stats["home_gap_ok"]:,} also with cables >= {args.min_gap} m apart; '
+          f'{stats["home_ok"]:,} also wrench-closed and collision-free there at all '
+          f'{stats["home_orientations"]} orientations within +-30, +-30, +-10 deg')
+    print(f'{"rank":>4} {"anchor of (+,+,+)":>20} {"anchor of (-,+,+)":>20} | {"box both":>8} '
+          f'{"free":>6} {"closed":>6} | {"0 deg both":>10} {"free":>6} | {"gap mm":>6}  shipped')
+    for r in rows[:args.top]:
+        a0 = ' '.join(f'{v:+.2f}' for v in r['anchor0'])
+        a1 = ' '.join(f'{v:+.2f}' for v in r['anchor1'])
+        print(f'{r["rank"]:>4} {a0:>20} {a1:>20} | {r["box_both_percent"]:>7.1f}% '
+              f'{r["box_collision_free_percent"]:>5.1f}% '
+              f'{r["box_wrench_closed_percent"]:>5.1f}% | '
+              f'{r["zero_rotation_both_percent"]:>9.1f}% '
+              f'{r["zero_rotation_collision_free_percent"]:>5.1f}% | '
+              f'{1000 * r["home_min_gap_m"]:>6.1f}  {r["shipped_as"] or ""}')
+    print('box: share of (grid point, orientation within +-30, +-30, +-10 deg) pairs that are '
+          'collision-free and wrench-closed; 0 deg: the zero-rotation grid')
+    if out is not None:
+        _write_outputs(out, {'robot_dimensions_from': desc.source, 'pitch_m': args.pitch,
+                             'min_home_gap_m': args.min_gap, 'step_m': args.step,
+                             'stats': stats, 'rows': rows})
+    return 0
+
+
+def _corner_arrangements(args):
     from cable_robot_pkg.cdrpm.arrangements import CORNERS, pairing_of, score_pairings
     from cable_robot_pkg.cdrpm.description import load_description, shipped_descriptions
 

@@ -8,7 +8,7 @@ import pytest
 from cable_robot_pkg.cdrpm import collisions as col
 from cable_robot_pkg.cdrpm import workspace as ws
 from cable_robot_pkg.cdrpm.description import CONFIG_DIR, load_description
-from cable_robot_pkg.cdrpm.kinematics import rotation_matrix
+from cable_robot_pkg.cdrpm.kinematics import rotation_matrix, rotation_matrix_deg
 from cable_robot_pkg.cdrpm.wrench_closure import structure_matrix, wrench_closed_lp, wrench_closure
 from paramotion.cli import main as cli_main
 
@@ -16,6 +16,11 @@ from paramotion.cli import main as cli_main
 @pytest.fixture(scope='module')
 def neuron():
     return load_description()
+
+
+@pytest.fixture(scope='module')
+def pinwheel():
+    return load_description(CONFIG_DIR / 'kntu_pinwheel.yaml')
 
 
 @pytest.fixture(scope='module')
@@ -37,30 +42,37 @@ def test_grid_is_symmetric_cell_centres(neuron):
 def test_table2_rows(table):
     """What we can claim for Table II with the derived Neuron (docs/workspace.md explains it).
 
-    Row 0/0/0 is within 5 points of the paper's 100 %. For the rotated rows our arrangement is
-    at least as collision-free as the paper's, and what eq. (10) loses is almost entirely the
-    rotated platform poking out of the frame next to the walls (which the paper does not model).
+    Row 0/0/0 is within 5 points of the paper's 100 %. The rotated rows are NOT reproduced:
+    the wrench-closed arrangement pays for its crossing cables with cable-body and cable-cable
+    collisions under rotation, so every rotated row falls below the paper's figure, and the
+    rows lose points both to collisions and to the platform poking out of the frame.
     """
     assert [r['rotation_deg'] for r in table] == [[0, 0, 0], [30, 0, 0], [0, 30, 0],
                                                   [0, 0, 30], [30, 30, 30]]
     assert abs(table[0]['accessible_percentage'] - 100.0) <= 5.0
     for row in table:
-        assert row['collision_free_percentage_in_frame'] >= row['paper_kntu_percent'] - 5.0
         collided = row['total_points'] - row['accessible_points'] - row['outside_frame']
-        assert collided <= 0.002 * row['total_points']
-        assert row['accessible_points'] + row['outside_frame'] + collided == row['total_points']
+        assert collided > 0
         assert row['cable_workpiece'] == 0 and row['platform_workpiece'] == 0
-    # Rotations make the platform poke out near the walls: eq. (10) drops below 100 %.
-    assert all(r['outside_frame'] > 0 for r in table[1:])
+        assert row['accessible_percentage'] <= row['collision_free_percentage_in_frame']
+    for row in table[1:]:
+        assert row['outside_frame'] > 0
+        assert row['accessible_percentage'] < row['paper_kntu_percent']
+    # Rotation about x and the combined row cost far more than rotation about y.
+    assert table[2]['accessible_percentage'] > table[1]['accessible_percentage']
+    assert table[4]['accessible_percentage'] == min(r['accessible_percentage'] for r in table)
 
 
 def test_cow_symmetry_of_section_iv_a(neuron):
-    """+z with clockwise z-rotation matches -z with counter-clockwise (half turn about y)."""
-    plus = ws.constant_orientation_workspace(neuron, (0, 0, 30), step=0.1)
-    minus = ws.constant_orientation_workspace(neuron, (0, 0, -30), step=0.1)
-    np.testing.assert_array_equal(plus.flags, minus.flags[::-1, :, ::-1])
-    # The tetrahedral arrangement (half turn about x) has many collisions: the same relation
-    # holds with y and z flipped, while the z mirror alone does not map its COW onto itself.
+    """+z with clockwise z-rotation matches -z with counter-clockwise (half turns about x, y)."""
+    plus = ws.constant_orientation_workspace(neuron, (0, 0, 30), step=0.1).flags
+    minus = ws.constant_orientation_workspace(neuron, (0, 0, -30), step=0.1).flags
+    assert np.count_nonzero(plus & (col.CABLE_CABLE | col.CABLE_BODY)) > 100
+    np.testing.assert_array_equal(plus, minus[::-1, :, ::-1])      # half turn about y
+    np.testing.assert_array_equal(plus, minus[:, ::-1, ::-1])      # half turn about x
+    # Chiral: the z mirror alone does not map the COW onto itself.
+    assert not np.array_equal(plus, plus[:, :, ::-1])
+    # The tetrahedral arrangement (half turn about x only) obeys the same relation.
     tetra = load_description(CONFIG_DIR / 'kntu_tetra_cross.yaml')
     a = ws.constant_orientation_workspace(tetra, (0, 0, 30), step=0.1).flags
     b = ws.constant_orientation_workspace(tetra, (0, 0, -30), step=0.1).flags
@@ -71,16 +83,19 @@ def test_cow_symmetry_of_section_iv_a(neuron):
 
 def test_orientation_workspace_symmetry(neuron):
     res = ws.orientation_workspace(neuron, [0, 0, 0], rz_deg=(-20, 0, 20), step_deg=2.0)
-    # Half turn about y: (rx, ry, rz) -> (-rx, ry, -rz) at the origin.
+    # At the origin the half turn about y maps (rx, ry, rz) to (-rx, ry, -rz), the half turn
+    # about x maps it to (rx, -ry, -rz).
     np.testing.assert_array_equal(res.flags[0], res.flags[2][::-1, :])
+    np.testing.assert_array_equal(res.flags[0], res.flags[2][:, ::-1])
     np.testing.assert_array_equal(res.flags[1], res.flags[1][::-1, :])
+    assert np.any(res.flags != 0) and np.any(res.flags == 0)
     bound = res.boundary()
     row0 = [r for r in bound[1]['rows'] if r['rx'] == 0.0][0]
     assert row0['ry_min'] < 0 < row0['ry_max']
 
 
-def test_tow_is_the_intersection_of_cows(neuron):
-    desc = neuron
+def test_tow_is_the_intersection_of_cows(pinwheel):
+    desc = pinwheel       # the Neuron's TOW at these angles is empty (docs/workspace.md)
     tow = ws.total_orientation_workspace(desc, (40, 40, 30), step=0.2, angle_step_deg=20)
     assert len(tow.orientations_deg) == 5 * 5 * 4
     inter = np.ones(tow.accessible.shape, dtype=bool)
@@ -121,25 +136,76 @@ def test_largest_box_matches_brute_force():
 def test_wrench_closure_null_space_test_matches_lp():
     rng = np.random.default_rng(4)
     seen = set()
-    for name in ('kntu_neuron', 'kntu_tetra_cross', 'kntu_uncrossed'):
+    for name in ('kntu_neuron', 'kntu_pinwheel', 'kntu_tetra_cross', 'kntu_uncrossed'):
         desc = load_description(CONFIG_DIR / f'{name}.yaml')
-        pos = rng.uniform(-0.8, 0.8, (150, 3)) * [1, 2, 1]
-        rots = rotation_matrix(*rng.uniform(-0.6, 0.6, (3, 150)))
+        pos = rng.uniform(-0.8, 0.8, (120, 3)) * [1, 2, 1]
+        rots = rotation_matrix(*rng.uniform(-0.6, 0.6, (3, 120)))
         closed, margin = wrench_closure(desc, pos, rots)
         mats = structure_matrix(desc, pos, rots)
-        for k in range(150):
+        for k in range(120):
             lp_closed, _ = wrench_closed_lp(mats[k])
             assert lp_closed == closed[k], (name, k, margin[k])
         seen.update(closed.tolist())
     assert seen == {True, False}
 
 
-def test_neuron_is_never_wrench_closed_and_why(neuron):
-    """All eight Neuron cables twist the platform the same way about y (see the YAML)."""
-    pts = ws.grid_points(ws.grid_axes(neuron, 0.2))
-    closed, _ = wrench_closure(neuron, pts, np.eye(3))
+def _balances(mat, wrench, t_min):
+    """Independent check: tensions t >= t_min with W t = wrench exist (scipy LP)."""
+    from scipy.optimize import linprog
+    res = linprog(np.ones(mat.shape[1]), A_eq=mat, b_eq=wrench,
+                  bounds=[(t_min, None)] * mat.shape[1], method='highs')
+    return res.status == 0
+
+
+def test_wrench_closed_means_positive_tensions_balance_any_wrench(neuron, pinwheel):
+    """The definition itself: at a closed pose every wrench is balanced with t_i >= t_min > 0.
+
+    Checked with an LP independent of the null-space test, on the 12 unit force/torque
+    directions and random wrenches; at a pinwheel pose one torque about y cannot be balanced.
+    """
+    rng = np.random.default_rng(12)
+    pos = rng.uniform(-0.3, 0.3, (40, 3))
+    closed, _ = wrench_closure(neuron, pos, np.eye(3))
+    assert closed.sum() >= 10
+    mats = structure_matrix(neuron, pos[closed][:10], np.eye(3))
+    wrenches = np.vstack([np.eye(6), -np.eye(6), rng.normal(size=(8, 6))])
+    for mat in mats:
+        assert all(_balances(mat, w, t_min=1e-3) for w in wrenches)
+    mat = structure_matrix(pinwheel, [[0.1, 0.2, -0.1]], np.eye(3))[0]
+    against = np.zeros(6)
+    against[4] = -np.sign(mat[4, 0])          # the torque every pinwheel cable works against
+    assert np.all(np.sign(mat[4]) == np.sign(mat[4, 0]))
+    assert not _balances(mat, against, 1e-3)
+    assert not _balances(mat, against, 0.0)
+
+
+def test_textbook_z_crossed_arrangement():
+    """An IPAnema-like layout: frame corners to platform corners, top to bottom, same quadrant.
+
+    In a cubic frame its centre pose is a known singular (rank 5) configuration; in the Table I
+    frame it is wrench-closed on the whole grid, but each crossing pair has both ends on
+    parallel vertical edges, so the two cables are coplanar and intersect at every pose.
+    """
+    from cable_robot_pkg.cdrpm.arrangements import CORNERS, pairing_description
+    perm = [int(np.nonzero(np.all(CORNERS == c * [1, 1, -1], axis=1))[0][0]) for c in CORNERS]
+    cube = pairing_description(perm, [1.0, 1.0, 1.0], [0.1] * 3, 0.0025)
+    mat = structure_matrix(cube, [[0.0, 0.0, 0.0]], np.eye(3))[0]
+    assert np.linalg.matrix_rank(mat) == 5
+    assert not wrench_closure(cube, [[0.0, 0.0, 0.0]], np.eye(3))[0][0]
+    desc = pairing_description(perm, [1.0, 2.0, 1.0], [0.1] * 3, 0.0025)
+    pts = ws.grid_points(ws.grid_axes(desc, 0.2))
+    closed, margin = wrench_closure(desc, pts, np.eye(3))
+    assert closed.all() and margin.min() > 0
+    flags = col.classify_poses(desc, pts, np.eye(3))
+    assert np.all(flags & col.CABLE_CABLE)
+
+
+def test_pinwheel_is_never_wrench_closed_and_why(pinwheel):
+    """All eight pinwheel cables twist the platform the same way about y (see its YAML)."""
+    pts = ws.grid_points(ws.grid_axes(pinwheel, 0.2))
+    closed, _ = wrench_closure(pinwheel, pts, np.eye(3))
     assert not closed.any()
-    mats = structure_matrix(neuron, pts, np.eye(3))
+    mats = structure_matrix(pinwheel, pts, np.eye(3))
     moment_y = mats[:, 4, :]
     assert np.all(moment_y < 0) or np.all(moment_y > 0)
 
@@ -168,8 +234,9 @@ def test_wrench_closure_of_known_matrices():
 
 def test_workpiece_study_reduces_the_workspace(neuron):
     res = ws.workpiece_study(neuron, [1.0, 1.0, 0.5], step=0.05)
-    assert res['accessible_percentage_without'] == 100.0
+    assert res['accessible_percentage_without'] > 99.0      # a few cable crossings near walls
     assert 0 < res['ratio_percent'] < 100
+    assert res['accessible_percentage_with'] < res['accessible_percentage_without']
     assert res['counts_with_workpiece']['cable_workpiece'] > 0
     gap = res['min_gap_above_workpiece_m']
     assert gap is not None and gap > 0
@@ -214,25 +281,72 @@ def test_cli_table2_prints_paper_beside_ours(capsys):
     assert 'paper' in text and '30      30      30' in text and '71%' in text
 
 
-def test_arrangement_search_finds_the_shipped_pairings():
+def test_corner_search_finds_the_shipped_pairings():
     from cable_robot_pkg.cdrpm import arrangements as arr
-    neuron = arr.pairing_of(load_description())
+    pinwheel = arr.pairing_of(load_description(CONFIG_DIR / 'kntu_pinwheel.yaml'))
     tetra = arr.pairing_of(load_description(CONFIG_DIR / 'kntu_tetra_cross.yaml'))
     uncrossed = arr.pairing_of(load_description(CONFIG_DIR / 'kntu_uncrossed.yaml'))
+    assert arr.pairing_of(load_description()) is None       # the Neuron is edge-anchored
     assert uncrossed == list(range(8))
     # All-opposite corners: every cable would enter the platform.
     assert not arr.admissible([7 - k for k in range(8)])
-    assert arr.invariant(neuron, arr.HALF_TURN_Y) and not arr.invariant(neuron, arr.MIRROR_Z)
+    assert arr.invariant(pinwheel, arr.HALF_TURN_Y) and not arr.invariant(pinwheel, arr.MIRROR_Z)
     assert arr.invariant(tetra, arr.HALF_TURN_X) and not arr.invariant(tetra, arr.MIRROR_Z)
     assert arr.invariant(uncrossed, arr.MIRROR_Z)        # hence not a candidate
     candidates = arr.candidate_pairings()
     perms = [list(c[0]) for c in candidates]
-    assert neuron in perms and tetra in perms and uncrossed not in perms
+    assert pinwheel in perms and tetra in perms and uncrossed not in perms
     desc = load_description()
     rows = arr.score_pairings(desc.frame_half_size, desc.platform_half_size, desc.cable_radius,
                               step=0.4, pairings=[c for c in candidates
-                                                  if list(c[0]) in (neuron, tetra)])
+                                                  if list(c[0]) in (pinwheel, tetra)])
     by_perm = {tuple(r['pairing']): r for r in rows}
-    assert by_perm[tuple(neuron)]['wrench_closed_percent'] == 0.0
+    assert by_perm[tuple(pinwheel)]['wrench_closed_percent'] == 0.0
     assert by_perm[tuple(tetra)]['wrench_closed_percent'] > 10.0
     assert rows[0]['pairing'] == tetra
+
+
+def test_default_neuron_meets_the_search_requirements(neuron):
+    """The shipped Neuron is the D2 arrangement generated by its cables 1 and 2 and meets every
+    requirement of the edge search: properties, home pose wrench-closed, free, 2 cm gap."""
+    from cable_robot_pkg.cdrpm import arrangements as arr
+    rebuilt = arr.symmetric_description(neuron.frame_points[0], neuron.frame_points[1],
+                                        neuron.frame_half_size, neuron.platform_half_size,
+                                        neuron.cable_radius)
+    np.testing.assert_allclose(rebuilt.frame_points, neuron.frame_points)
+    np.testing.assert_allclose(rebuilt.platform_points, neuron.platform_points)
+    signs = np.sign(neuron.platform_points)
+    props = arr.arrangement_properties(signs, neuron.frame_points, neuron.platform_half_size)
+    assert all(props.values()), props
+    closed, free, gap = arr.home_check(neuron)
+    assert closed and free and gap >= 0.02
+    # Equal tensions balance the platform at home (the eight cable wrenches sum to zero) and
+    # the pose stays wrench-closed over the whole +-30, +-30, +-10 deg box of orientations.
+    mat = structure_matrix(neuron, [[0.0, 0.0, 0.0]], np.eye(3))[0]
+    np.testing.assert_allclose(mat @ np.ones(8), 0.0, atol=1e-12)
+    rots = rotation_matrix_deg(*ws.orientation_samples((30, 30, 10), 10).T)
+    assert wrench_closure(neuron, np.zeros((len(rots), 3)), rots)[0].all()
+    # The uncrossed and pinwheel arrangements fail the same home test.
+    for name in ('kntu_uncrossed', 'kntu_pinwheel'):
+        assert not arr.home_check(load_description(CONFIG_DIR / f'{name}.yaml'))[0]
+
+
+def test_edge_search_on_a_coarse_pitch():
+    """A 1 m pitch (corners and edge midpoints) runs in seconds and ranks consistently."""
+    from cable_robot_pkg.cdrpm import arrangements as arr
+    anchors = arr.edge_anchor_candidates([1.0, 2.0, 1.0], 1.0)
+    assert len(anchors) == 8 + 4 * 1 + 4 * 3 + 4 * 1       # corners + interior edge points
+    assert np.all(np.isclose(np.abs(anchors), [1.0, 2.0, 1.0]).sum(axis=1) >= 2)
+    rows, stats = arr.search_edge_arrangements([1.0, 2.0, 1.0], [0.1] * 3, 0.0025, pitch=1.0,
+                                               step=0.4, angle_step_deg=20.0, keep=3)
+    assert stats['pairs'] == len(anchors) ** 2
+    assert 0 < stats['home_ok'] <= stats['home_closed_and_free']
+    assert stats['home_closed_and_free'] <= stats['distinct_up_to_symmetry']
+    assert 1 <= len(rows) <= 3
+    scores = [r['box_both_percent'] for r in rows]
+    assert scores == sorted(scores, reverse=True) and scores[0] > 0
+    for row in rows:
+        desc = arr.symmetric_description(row['anchor0'], row['anchor1'], [1.0, 2.0, 1.0],
+                                         [0.1] * 3, 0.0025)
+        closed, free, gap = arr.home_check(desc)
+        assert closed and free and gap >= 0.02

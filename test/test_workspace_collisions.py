@@ -162,8 +162,13 @@ def _brute_flags(desc, positions, rot):
     return np.array(out, dtype=np.uint8)
 
 
+#: Collision types met by the Neuron with thick (0.049 m) cables on random poses.
+NEURON_FLAGS = col.CABLE_CABLE | col.CABLE_BODY | col.OUTSIDE
+
+
 @pytest.mark.parametrize('name,expected', [
-    ('kntu_neuron', col.CABLE_CABLE | col.OUTSIDE),
+    ('kntu_neuron', NEURON_FLAGS),
+    ('kntu_pinwheel', col.CABLE_CABLE | col.OUTSIDE),
     ('kntu_tetra_cross', col.CABLE_CABLE | col.CABLE_BODY | col.OUTSIDE),
     ('kntu_uncrossed', col.OUTSIDE)])
 def test_classification_matches_brute_force(name, expected):
@@ -243,9 +248,9 @@ def test_workpiece_collisions_are_counted():
 
 
 def test_screen_misses_nothing_where_cables_graze():
-    """Next to the Neuron's end walls cables pass within millimetres: screened == unscreened."""
+    """Next to the pinwheel's end walls cables pass within millimetres: screened == unscreened."""
     from cable_robot_pkg.cdrpm.workspace import grid_axes, grid_points
-    desc = load_description()
+    desc = load_description(CONFIG_DIR / 'kntu_pinwheel.yaml')
     xs, ys, zs = grid_axes(desc, 0.05)
     pos = grid_points([xs, ys[[0, 1, 2, -3, -2, -1]], zs])
     for rot in (np.eye(3), rotation_matrix_deg(3, -2, 4)):

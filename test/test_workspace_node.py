@@ -9,7 +9,7 @@ from geometry_msgs.msg import PoseStamped
 from sensor_msgs.msg import JointState
 from visualization_msgs.msg import MarkerArray
 
-from cable_robot_pkg.cdrpm.description import load_description
+from cable_robot_pkg.cdrpm.description import CONFIG_DIR, load_description
 from cable_robot_pkg.cdrpm.kinematics import inverse_kinematics
 from cable_robot_pkg.workspace_monitor_node import WorkspaceMonitorNode
 from paramotion.errors import ParameterError
@@ -86,8 +86,9 @@ def test_pose_in_lengths_and_diagnosis_out(graph):
 
 
 def test_collision_names_the_pair(graph):
-    # The Neuron's cables 1 and 2 cross right next to the +y end wall (see docs/workspace.md).
-    graph.add(WorkspaceMonitorNode)
+    # The pinwheel's cables 1 and 2 cross right next to the +y end wall (docs/workspace.md).
+    graph.add(WorkspaceMonitorNode,
+              robot_description=str(CONFIG_DIR / 'kntu_pinwheel.yaml'))
     probe = Probe(graph)
     _wait_matched(graph, probe)
     status = probe.send(graph, (-0.875, 1.875, 0.875))

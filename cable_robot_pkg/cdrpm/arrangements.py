@@ -1,26 +1,36 @@
-"""Corner-to-corner cable arrangements: the search behind the shipped Neuron description.
+"""Cable arrangements of the KNTU CDRPM: the searches behind the shipped Neuron description.
 
-The paper does not list the anchor coordinates of its "Neuron" design. With the fixed anchors
-A_i at the eight frame corners and the moving anchors B_i at the eight platform corners, an
-arrangement is a pairing (a permutation of the corners): platform corner k is joined to frame
-corner ``perm[k]``. This module enumerates the 8! = 40,320 pairings and keeps those that fit the
-paper's description:
+The paper does not list the anchor coordinates of its "Neuron" design. It says: the moving
+anchors B_i are the eight corners of the platform box (II-B, Fig. 1); the fixed anchors A_i
+"lie on the fixed cubic frame" (II-A); the design uses "opposite positioning" and "inherent
+cross cabling" (I); collisions in +z under clockwise z-rotation mirror those in -z under
+counter-clockwise z-rotation (IV-A), i.e. the arrangement is invariant under a half turn about
+a horizontal axis and is chiral; and it is meant to be force feasible in its whole workspace.
 
-- *admissible*: every cable leaves its platform corner outwards along at least one axis (else it
-  enters the platform at every position, eq. (8));
-- *half-turn symmetric*: invariant under a half turn about the x or the y axis, which maps
-  "+z with clockwise z-rotation" onto "-z with counter-clockwise z-rotation" (section IV-A),
-  and *not* invariant under the z mirror (else the paper's remark would be pointless);
+Two searches, both scored with the wrench-closure test of :mod:`.wrench_closure`:
 
-and scores each one by the collision-free share of a grid at zero rotation and by the share of
-that grid where it is wrench-closed (:mod:`.wrench_closure`).
+1. **Corner pairings** (:func:`candidate_pairings`, :func:`score_pairings`): A_i restricted to
+   the eight frame corners, an arrangement is a permutation of the corners; kept are the
+   *admissible* ones (every cable leaves its platform corner outwards along some axis, else it
+   enters the platform at every pose, eq. (8)) that are invariant under the half turn about x or
+   y and not under the z mirror. None is both collision-free and wrench-closed on more than a
+   third of the frame: two cables crossing between parallel frame and platform edges are
+   coplanar at every translation and always intersect, and the pairings that avoid such
+   crossings twist the platform one way only (the former default, ``kntu_pinwheel.yaml``) or
+   have no moment about one axis (``kntu_uncrossed.yaml``).
+2. **Edge anchors** (:func:`search_edge_arrangements`): every A_i may sit anywhere on the 12
+   edges of the frame (on a ``pitch`` spacing, corners included), and the arrangement is
+   invariant under the three half turns about x, y and z (the rotation group D2 of a box, which
+   contains the half turn of IV-A), so two cables - those of platform corners (+,+,+) and
+   (-,+,+) - generate all eight. This is the search behind the shipped default.
 """
 import itertools
 
 import numpy as np
 
-from cable_robot_pkg.cdrpm.collisions import classify_poses
+from cable_robot_pkg.cdrpm.collisions import check_pose, classify_poses
 from cable_robot_pkg.cdrpm.description import description_from_dict
+from cable_robot_pkg.cdrpm.kinematics import rotation_matrix_deg
 from cable_robot_pkg.cdrpm.workspace import grid_axes, grid_points
 from cable_robot_pkg.cdrpm.wrench_closure import wrench_closure
 
@@ -112,3 +122,246 @@ def pairing_of(desc):
     for k, f in zip(order, frame):
         perm[k] = index.get(tuple(f))
     return perm if None not in perm and len(set(perm)) == 8 else None
+
+
+# --- edge-anchored arrangements with the half-turn symmetry of the frame box ------------------
+#
+# The corner-to-corner search above cannot give a robot that is both collision-free and
+# wrench-closed: two cables that cross between parallel frame and platform edges are coplanar
+# for every translation and always intersect, and the pairings that avoid such crossings twist
+# the platform one way only (the pinwheel) or have no moment about one axis (uncrossed). The
+# paper only says that the A_i "lie on the fixed cubic frame" (section II-A), so the search
+# below lets each frame anchor slide along the 12 frame edges.
+
+#: The half turns about x, y and z with the identity: the rotation group D2 of a box.
+D2 = (np.ones(3), HALF_TURN_X, HALF_TURN_Y, HALF_TURN_X * HALF_TURN_Y)
+#: Platform corners whose cables generate an arrangement under D2 (one per D2 orbit of corners:
+#: corners with sx*sy*sz = +1 and = -1).
+GENERATOR_CORNERS = np.array([[1.0, 1.0, 1.0], [-1.0, 1.0, 1.0]])
+
+
+def edge_anchor_candidates(frame_half_size, pitch):
+    """Points on the 12 edges of the frame box, at whole multiples of ``pitch`` (m) from an end.
+
+    Includes the corners. Returns an (m, 3) array without duplicates.
+    """
+    frame_half_size = np.asarray(frame_half_size, dtype=float)
+    if not pitch > 0:
+        raise ValueError(f'pitch must be > 0, got {pitch}')
+    points = set()
+    for axis in range(3):
+        f = frame_half_size[axis]
+        count = int(np.floor(2 * f / pitch + 1e-9))
+        along = {round(f - k * pitch, 9) for k in range(count + 1)}
+        along |= {round(-f + k * pitch, 9) for k in range(count + 1)}
+        others = [k for k in range(3) if k != axis]
+        for s1 in (1.0, -1.0):
+            for s2 in (1.0, -1.0):
+                for t in along:
+                    p = np.zeros(3)
+                    p[axis] = t
+                    p[others[0]] = s1 * frame_half_size[others[0]]
+                    p[others[1]] = s2 * frame_half_size[others[1]]
+                    points.add(tuple(np.round(p, 9) + 0.0))
+    return np.array(sorted(points))
+
+
+def symmetric_cables(anchor0, anchor1):
+    """The eight (platform corner signs, frame anchor) cables generated under D2.
+
+    The cable of platform corner (+,+,+) goes to ``anchor0`` and that of (-,+,+) to
+    ``anchor1``; the half turns about x, y and z carry them to the other six corners. Returned
+    in the corner order of :data:`CORNERS` as two (8, 3) arrays.
+    """
+    signs, anchors = [], []
+    for corner, anchor in zip(GENERATOR_CORNERS, (anchor0, anchor1)):
+        for g in D2:
+            signs.append(corner * g)
+            anchors.append(np.asarray(anchor, dtype=float) * g)
+    signs, anchors = np.array(signs), np.array(anchors)
+    order = [int(np.nonzero(np.all(signs == c, axis=1))[0][0]) for c in CORNERS]
+    return signs[order], anchors[order]
+
+
+def symmetric_description(anchor0, anchor1, frame_half_size, platform_half_size, cable_radius,
+                          name='edge_arrangement'):
+    """Robot description of the D2-symmetric arrangement generated by two frame anchors."""
+    signs, anchors = symmetric_cables(anchor0, anchor1)
+    return description_from_dict({
+        'name': name,
+        'frame_half_size': [float(v) for v in frame_half_size],
+        'frame_points': np.round(anchors, 9).tolist(),
+        'platform_points': (signs * np.asarray(platform_half_size, dtype=float)).tolist(),
+        'platform_half_size': [float(v) for v in platform_half_size],
+        'cable_radius': float(cable_radius)})
+
+
+def _cable_set(signs, anchors, transform=None):
+    transform = np.eye(3) if transform is None else transform
+    return frozenset((tuple(np.round(transform @ s, 9) + 0.0),
+                      tuple(np.round(transform @ a, 9) + 0.0)) for s, a in zip(signs, anchors))
+
+
+def _box_symmetries(frame_half_size, platform_half_size):
+    """Signed permutation matrices mapping both boxes onto themselves (incl. mirrors)."""
+    out = []
+    for perm in itertools.permutations(range(3)):
+        for flips in itertools.product((1.0, -1.0), repeat=3):
+            mat = np.zeros((3, 3))
+            for row, (col, flip) in enumerate(zip(perm, flips)):
+                mat[row, col] = flip
+            if np.allclose(np.abs(mat) @ frame_half_size, frame_half_size) and np.allclose(
+                    np.abs(mat) @ platform_half_size, platform_half_size):
+                out.append(mat)
+    return out
+
+
+def arrangement_properties(signs, anchors, platform_half_size):
+    """Properties the paper asks of the Neuron, checked on an arrangement.
+
+    ``opposite``: every cable is anchored on the opposite side of the platform along at least
+    one axis (the paper's "opposite positioning" and "cross cabling"); ``outward``: every cable
+    leaves its platform corner outwards along some axis (else it enters the platform at every
+    pose, eq. (8)); ``chiral``: not invariant under the inversion through O (equivalently, for
+    a D2-symmetric arrangement, under any mirror), so that clockwise and counter-clockwise
+    z-rotations differ, as section IV-A describes; ``distinct``: no two cables share an anchor.
+    """
+    corners = signs * np.asarray(platform_half_size, dtype=float)
+    opposite = bool(np.all(np.any(anchors * signs < 0, axis=1)))
+    outward = bool(np.all(np.any(np.sign(anchors - corners) == signs, axis=1)))
+    chiral = _cable_set(signs, anchors) != _cable_set(signs, anchors, -np.eye(3))
+    distinct = len({tuple(a) for a in np.round(anchors, 9)}) == len(anchors)
+    return {'opposite': opposite, 'outward': outward, 'chiral': chiral, 'distinct': distinct}
+
+
+def home_check(desc, orientations_deg=((0.0, 0.0, 0.0),)):
+    """Wrench closure and collisions at the home position (centroid at O).
+
+    Returns ``(closed, collision_free, min_gap_m)``: wrench-closed and collision-free at every
+    orientation of ``orientations_deg`` ((K, 3), degrees), and the smallest surface distance
+    between two cables (segment distance minus 2 epsilon) at zero rotation.
+    """
+    rots = rotation_matrix_deg(*np.asarray(orientations_deg, dtype=float).T)
+    origin = np.zeros((rots.shape[0], 3))
+    closed = bool(np.all(wrench_closure(desc, origin, rots)[0]))
+    free = bool(np.all(classify_poses(desc, origin, rots) == 0))
+    report = check_pose(desc, np.zeros(3), np.eye(3))
+    return closed, free, float(np.min(report.clearance))
+
+
+def grid_scores(desc, points, rotation=None):
+    """Shares (%) of ``points`` that are collision-free and wrench-closed, free, closed."""
+    rotation = np.eye(3) if rotation is None else rotation
+    free = classify_poses(desc, points, rotation) == 0
+    closed, _ = wrench_closure(desc, points, rotation)
+    return (100.0 * float(np.mean(free & closed)), 100.0 * float(np.mean(free)),
+            100.0 * float(np.mean(closed)))
+
+
+#: Orientation box of the score: the paper's total-orientation-workspace range (section IV-C).
+SCORE_THETA_DEG = (30.0, 30.0, 10.0)
+
+
+def box_scores(desc, points, rotations):
+    """Shares (%) of the (point, orientation) pairs that are collision-free and wrench-closed,
+    collision-free, and wrench-closed: a sampled measure of the 6-D workspace."""
+    both = free_n = closed_n = 0
+    for rot in rotations:
+        free = classify_poses(desc, points, rot) == 0
+        closed, _ = wrench_closure(desc, points, rot)
+        both += int(np.count_nonzero(free & closed))
+        free_n += int(np.count_nonzero(free))
+        closed_n += int(np.count_nonzero(closed))
+    total = float(len(points) * len(rotations))
+    return 100.0 * both / total, 100.0 * free_n / total, 100.0 * closed_n / total
+
+
+def search_edge_arrangements(frame_half_size, platform_half_size, cable_radius, pitch=0.1,
+                             min_home_gap=0.02, theta_deg=SCORE_THETA_DEG,
+                             home_angle_step_deg=10.0, coarse_step=0.4,
+                             coarse_angle_step_deg=60.0, step=0.2, angle_step_deg=10.0,
+                             keep=40, progress=False):
+    """Search the D2-symmetric edge-anchored arrangements; best first.
+
+    Candidates: every pair of frame anchors from :func:`edge_anchor_candidates` (``pitch``)
+    for the generating corners (+,+,+) and (-,+,+), expanded by the half turns. Kept, one per
+    class of arrangements related by a symmetry or mirror of the boxes: those with all four
+    :func:`arrangement_properties` that, with the centroid at O, are wrench-closed and
+    collision-free at every orientation within +-``theta_deg`` (sampled every
+    ``home_angle_step_deg``; the platform can be turned in place at home) and keep every two
+    cables at least ``min_home_gap`` (m) apart at zero rotation.
+    Score: the share of the 6-D box "grid x orientations within +-``theta_deg``" that is both
+    collision-free and wrench-closed (:func:`box_scores`), first on a ``coarse_step`` grid with
+    ``coarse_angle_step_deg`` sampling, then for the best ``keep`` on the ``step`` grid with
+    ``angle_step_deg`` sampling; ties broken by the collision-free share and the home gap.
+    Returns ``(rows, stats)``.
+    """
+    from cable_robot_pkg.cdrpm.workspace import orientation_samples
+
+    frame_half_size = np.asarray(frame_half_size, dtype=float)
+    platform_half_size = np.asarray(platform_half_size, dtype=float)
+    anchors = edge_anchor_candidates(frame_half_size, pitch)
+    symmetries = _box_symmetries(frame_half_size, platform_half_size)
+    home_orientations = orientation_samples(theta_deg, home_angle_step_deg)
+    stats = {'anchor_points': int(len(anchors)), 'pairs': int(len(anchors) ** 2),
+             'with_properties': 0, 'distinct_up_to_symmetry': 0,
+             'home_closed_and_free': 0, 'home_gap_ok': 0, 'home_ok': 0,
+             'home_orientations': int(len(home_orientations))}
+    seen = set()
+    survivors = []
+    pairs = itertools.product(range(len(anchors)), repeat=2)
+    if progress:
+        from tqdm import tqdm
+        pairs = tqdm(pairs, total=len(anchors) ** 2, desc='anchor pairs', unit='pair',
+                     leave=False, mininterval=1.0)
+    for i, j in pairs:
+        signs, cable_anchors = symmetric_cables(anchors[i], anchors[j])
+        props = arrangement_properties(signs, cable_anchors, platform_half_size)
+        if not all(props.values()):
+            continue
+        stats['with_properties'] += 1
+        key = min(tuple(sorted(_cable_set(signs, cable_anchors, g))) for g in symmetries)
+        if key in seen:
+            continue
+        seen.add(key)
+        desc = symmetric_description(anchors[i], anchors[j], frame_half_size,
+                                     platform_half_size, cable_radius)
+        closed, free, gap = home_check(desc)
+        if not (closed and free):
+            continue
+        stats['home_closed_and_free'] += 1
+        if gap < min_home_gap:
+            continue
+        stats['home_gap_ok'] += 1
+        closed, free, _ = home_check(desc, home_orientations)
+        if closed and free:
+            survivors.append((anchors[i], anchors[j], desc, gap))
+    stats['distinct_up_to_symmetry'] = len(seen)
+    stats['home_ok'] = len(survivors)
+    if not survivors:
+        return [], stats
+    coarse = grid_points(grid_axes(survivors[0][2], coarse_step))
+    coarse_rots = rotation_matrix_deg(*orientation_samples(theta_deg, coarse_angle_step_deg).T)
+    ranked = survivors
+    if progress:
+        from tqdm import tqdm
+        ranked = tqdm(survivors, desc='scoring', unit='arrangement', leave=False)
+    first = sorted(((box_scores(s[2], coarse, coarse_rots), k) for k, s in enumerate(ranked)),
+                   key=lambda r: (-r[0][0], -r[0][1], -survivors[r[1]][3]))
+    points = grid_points(grid_axes(survivors[0][2], step))
+    rots = rotation_matrix_deg(*orientation_samples(theta_deg, angle_step_deg).T)
+    rows = []
+    for _, k in first[:keep]:
+        a0, a1, desc, gap = survivors[k]
+        both, free, closed = box_scores(desc, points, rots)
+        zero = grid_scores(desc, points)
+        rows.append({'anchor0': a0.tolist(), 'anchor1': a1.tolist(),
+                     'box_both_percent': both, 'box_collision_free_percent': free,
+                     'box_wrench_closed_percent': closed,
+                     'zero_rotation_both_percent': zero[0],
+                     'zero_rotation_collision_free_percent': zero[1],
+                     'zero_rotation_wrench_closed_percent': zero[2],
+                     'home_min_gap_m': gap})
+    rows.sort(key=lambda r: (-r['box_both_percent'], -r['box_collision_free_percent'],
+                             -r['home_min_gap_m'], r['anchor0'], r['anchor1']))
+    return rows, stats
