@@ -116,3 +116,22 @@ def test_drain_delivers_every_message_of_a_burst():
             pub.publish(Float64(data=float(i)))
         assert graph.drain() == 16
         assert got == [float(i) for i in range(16)]
+
+
+def test_sim_time_timers_fire_on_time_with_the_new_clock():
+    """A 0.1 s sim-time timer in a graph stepped every 0.01 s runs at 0.1, 0.2, ... and sees
+    exactly that time (not the previous step's clock)."""
+    from paramotion.node import ParamotionNode
+
+    class Ticker(ParamotionNode):
+        def __init__(self, **kwargs):
+            super().__init__('ticker', **kwargs)
+            self.times = []
+            self.create_timer(0.1, lambda: self.times.append(self.get_clock().now().nanoseconds))
+
+    with Graph() as graph:
+        sim = graph.add(SmokeSimNode, publish_period=0.01)
+        ticker = graph.add(Ticker)
+        graph.run_lockstep(sim, max_sim_time=1.0)
+    assert ticker.times[-5:] == [600_000_000, 700_000_000, 800_000_000, 900_000_000,
+                                 1_000_000_000]
