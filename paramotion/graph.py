@@ -26,28 +26,51 @@ from paramotion.node import overrides_from_dict
 
 def private_domain_id():
     """DDS domain for a one-process run: ``ROS_DOMAIN_ID`` if the user set it (to watch the run
-    live), else a random one in 102..200 with localhost-only discovery, so that other graphs on
-    the machine (a free-running simulator's ``/clock`` on the default domain 0, another
-    scenario) can never leak into this run's simulated time."""
+    live), else a random one in 102..200."""
     env = os.environ.get('ROS_DOMAIN_ID', '').strip()
     if env.isdigit():
         return int(env)
-    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     return random.SystemRandom().randint(102, 200)
+
+
+def _init_context(context, domain_id, private):
+    """``rclpy.init`` of ``context``; ``private`` turns DDS discovery off for it.
+
+    All nodes of a Graph share one context (one DDS participant), so they still talk to each
+    other with discovery off, but no other process can join: a free-running simulator's
+    ``/clock`` elsewhere on the machine can never leak into this run's simulated time. The
+    environment variable is read when the participant is created and restored right after.
+    """
+    key = 'ROS_AUTOMATIC_DISCOVERY_RANGE'
+    old = os.environ.get(key)
+    if private:
+        os.environ[key] = 'OFF'
+    try:
+        rclpy.init(context=context, domain_id=domain_id)
+    finally:
+        if private:
+            if old is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = old
 
 
 class Graph:
     """A set of nodes sharing one context and one executor. Use as a context manager.
 
-    ``domain_id`` defaults to :func:`private_domain_id`.
+    By default (``domain_id`` None and no ``ROS_DOMAIN_ID`` set) the graph is private: a random
+    domain with discovery off, heard by nobody else. Set ``ROS_DOMAIN_ID`` (or pass
+    ``domain_id``) to watch a run live from other processes.
     """
 
     def __init__(self, domain_id=None, max_callbacks_per_drain=200_000):
+        private = domain_id is None and not os.environ.get('ROS_DOMAIN_ID', '').strip()
         if domain_id is None:
             domain_id = private_domain_id()
         self.domain_id = domain_id
+        self.private = private
         self.context = rclpy.Context()
-        rclpy.init(context=self.context, domain_id=domain_id)
+        _init_context(self.context, domain_id, private)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.nodes = []
         self.max_callbacks_per_drain = max_callbacks_per_drain

@@ -135,3 +135,27 @@ def test_sim_time_timers_fire_on_time_with_the_new_clock():
         graph.run_lockstep(sim, max_sim_time=1.0)
     assert ticker.times[-5:] == [600_000_000, 700_000_000, 800_000_000, 900_000_000,
                                  1_000_000_000]
+
+
+def test_private_graph_is_not_heard_from_outside(monkeypatch):
+    """Without ROS_DOMAIN_ID a Graph turns discovery off: another context on the same domain
+    never sees its publishers (no stray /clock can cross between runs)."""
+    import rclpy
+    from rosgraph_msgs.msg import Clock
+
+    from paramotion.launch import wait_until
+    monkeypatch.delenv('ROS_DOMAIN_ID')
+    with Graph() as graph:
+        assert graph.private
+        sim = graph.add(SmokeSimNode)
+        graph.run_lockstep(sim, max_sim_time=0.1)
+        outside = rclpy.Context()
+        rclpy.init(context=outside, domain_id=graph.domain_id)
+        try:
+            node = rclpy.create_node('outsider', context=outside)
+            node.create_subscription(Clock, '/clock', lambda m: None, 1)
+            heard = wait_until(lambda: node.count_publishers('/clock') > 0, timeout=3.0)
+            node.destroy_node()
+        finally:
+            rclpy.try_shutdown(context=outside)
+        assert not heard

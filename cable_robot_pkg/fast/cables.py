@@ -1,0 +1,197 @@
+"""Tension-only elastic cables of the FAST trolley and their inverse kinematics.
+
+The trolley of the FAST field model (Lu, Zhu, Ren, Sec. I, Fig. 2) hangs from ten cables, each
+fed in/out by its own winch: drive cables 1-4 and pretension cables 7-10 run straight from a
+fixed pulley to a point on the trolley; suspension cables 5-6 run from a tower pulley over a
+pulley on the trolley to another tower pulley, so both spans carry one tension.
+
+Cable model (used by the simulator to produce forces and by the controller for its feedforward):
+
+- stretched (geometric) length ``L`` = sum of the spans' lengths from the pulley exits to the
+  trolley point;
+- the winch sets the unstretched length ``L0``; the spring rate is ``EA / L0``, so the elastic
+  tension is ``EA (L - L0) / L0``;
+- viscous damping ``c (dL/dt - dL0/dt)`` on the stretch rate;
+- tension is never negative: ``T = max(0, ...)``; a cable with ``L <= L0`` is *slack* (T = 0,
+  damping included, a rope cannot push).
+
+Cable inverse kinematics (trolley pose -> winch commands): the geometric lengths at the target
+pose, a tension distribution that balances the suspended weight within the tension limits
+(minimum-norm deviation from a mid tension, bounded least squares when that leaves the limits),
+then ``L0 = EA L / (EA + T)``.
+"""
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import lsq_linear
+
+
+@dataclass(frozen=True)
+class Cable:
+    """One cable: pulley exit(s) in the world, attachment (or trolley pulley) on the trolley."""
+
+    name: str
+    kind: str                 # 'drive', 'suspension' or 'pretension'
+    anchors: np.ndarray       # (k, 3) world pulley exits; k = 2 for a cable over a trolley pulley
+    attach: np.ndarray        # (3,) point on the trolley, trolley frame (m)
+
+
+class InfeasibleTensionError(ValueError):
+    """No tension distribution within the limits balances the load at this pose."""
+
+
+class CableSystem:
+    """Ten (or any number of) cables acting on one rigid trolley; vectorised over cables.
+
+    ``EA`` and ``damping`` may be scalars or per-cable arrays.
+    """
+
+    def __init__(self, cables, EA, damping):
+        self.cables = list(cables)
+        self.names = [c.name for c in self.cables]
+        self.n = len(self.cables)
+        self.EA = np.broadcast_to(np.asarray(EA, float), (self.n,)).copy()
+        self.damping = np.broadcast_to(np.asarray(damping, float), (self.n,)).copy()
+        self.attach = np.array([c.attach for c in self.cables], float)          # (n, 3)
+        k = max(len(c.anchors) for c in self.cables)
+        # Pad anchors to (n, k, 3) with a mask so the geometry stays vectorised.
+        self.anchors = np.zeros((self.n, k, 3))
+        self.anchor_mask = np.zeros((self.n, k), bool)
+        for i, c in enumerate(self.cables):
+            a = np.asarray(c.anchors, float).reshape(-1, 3)
+            self.anchors[i, :len(a)] = a
+            self.anchor_mask[i, :len(a)] = True
+
+    # ----------------------------------------------------------------- geometry
+    def attach_world(self, position, rotation):
+        """World positions (n, 3) of the trolley attachment points."""
+        return np.asarray(position) + self.attach @ np.asarray(rotation).T
+
+    def geometry(self, position, rotation):
+        """Stretched lengths (n,) and force directions (n, 3) for a trolley pose.
+
+        The direction of cable i is the sum of the unit vectors from its trolley point toward
+        each of its pulley exits (two for a suspension cable over a trolley pulley), so the force
+        on the trolley is ``T_i * direction_i``.
+        """
+        p = self.attach_world(position, rotation)                              # (n, 3)
+        spans = self.anchors - p[:, None, :]                                   # (n, k, 3)
+        span_len = np.linalg.norm(spans, axis=2)
+        span_len = np.where(self.anchor_mask, span_len, 1.0)
+        units = np.where(self.anchor_mask[..., None], spans / span_len[..., None], 0.0)
+        lengths = np.where(self.anchor_mask, span_len, 0.0).sum(axis=1)
+        return lengths, units.sum(axis=1)
+
+    def lengths(self, position, rotation):
+        """Stretched (geometric) cable lengths (n,) at a trolley pose."""
+        return self.geometry(position, rotation)[0]
+
+    def wrench_matrix(self, position, rotation):
+        """Structure matrix W (6, n): the wrench on the trolley (force; torque about its
+        origin, world axes) is ``W @ T`` for cable tensions T."""
+        _, dirs = self.geometry(position, rotation)
+        r = np.asarray(self.attach) @ np.asarray(rotation).T
+        return np.vstack([dirs.T, np.cross(r, dirs).T])
+
+    def length_rates(self, position, rotation, linear_velocity, angular_velocity):
+        """dL/dt (n,) from the trolley twist: minus the projection of each point's velocity on
+        the cable direction (the cable shortens when the point moves toward the pulleys)."""
+        r = np.asarray(self.attach) @ np.asarray(rotation).T
+        v = np.asarray(linear_velocity) + np.cross(angular_velocity, r)
+        _, dirs = self.geometry(position, rotation)
+        return -np.einsum('ij,ij->i', v, dirs)
+
+    # ----------------------------------------------------------------- forces
+    def tensions(self, lengths, length_rates, unstretched, unstretched_rates=0.0):
+        """Cable tensions (n,) and slack mask: elastic EA (L - L0)/L0 plus damping, clipped at 0.
+
+        A cable whose stretched length does not exceed its unstretched length is slack and
+        carries no tension (its damping does not push either).
+        """
+        lengths = np.asarray(lengths, float)
+        unstretched = np.maximum(np.asarray(unstretched, float), 1e-6)
+        strain = (lengths - unstretched) / unstretched
+        taut = strain > 0.0
+        t = self.EA * strain + self.damping * (np.asarray(length_rates)
+                                               - np.asarray(unstretched_rates))
+        t = np.where(taut, np.maximum(t, 0.0), 0.0)
+        return t, ~taut
+
+    def wrench(self, position, rotation, linear_velocity, angular_velocity, unstretched,
+               unstretched_rates=0.0):
+        """Total cable force and torque (about the trolley origin, world axes) on the trolley.
+
+        Returns ``(force (3,), torque (3,), tensions (n,), lengths (n,), slack (n,))``.
+        One geometry pass (this runs every physics step).
+        """
+        r = np.asarray(self.attach) @ np.asarray(rotation).T
+        lengths, dirs = self.geometry(position, rotation)
+        v = np.asarray(linear_velocity) + _cross(angular_velocity, r)
+        rates = -np.einsum('ij,ij->i', v, dirs)
+        t, slack = self.tensions(lengths, rates, unstretched, unstretched_rates)
+        f_i = t[:, None] * dirs
+        return f_i.sum(axis=0), _cross(r, f_i).sum(axis=0), t, lengths, slack
+
+    # ----------------------------------------------------------------- inverse kinematics
+    def unstretched_for(self, lengths, tensions):
+        """Unstretched lengths that give ``tensions`` at stretched ``lengths``:
+        L0 = EA L / (EA + T) (inverse of T = EA (L - L0) / L0)."""
+        return self.EA * np.asarray(lengths) / (self.EA + np.asarray(tensions))
+
+    def tension_distribution(self, position, rotation, load_wrench, t_min, t_max, t_ref=None):
+        """Tensions T (n,) with ``W T + load_wrench = 0`` and ``t_min <= T <= t_max``.
+
+        Minimises ``|T - t_ref|`` (default mid-range): the closed-form minimum-norm solution when
+        it is inside the limits, bounded least squares otherwise. Raises
+        :class:`InfeasibleTensionError` when the load cannot be balanced within the limits.
+        """
+        W = self.wrench_matrix(position, rotation)
+        b = -np.asarray(load_wrench, float)
+        t_ref = np.full(self.n, 0.5 * (t_min + t_max)) if t_ref is None else np.asarray(t_ref)
+        t = t_ref + np.linalg.pinv(W) @ (b - W @ t_ref)
+        if np.all(t >= t_min - 1e-9) and np.all(t <= t_max + 1e-9) \
+                and np.linalg.norm(W @ t - b) < 1e-6 * max(1.0, np.linalg.norm(b)):
+            return t
+        # Equality rows dominate a weak pull toward t_ref, within the box; then a minimum-norm
+        # projection removes the remaining equality residual.
+        pull = 1e-4
+        A = np.vstack([W, pull * np.eye(self.n)])
+        rhs = np.concatenate([b, pull * t_ref])
+        t = lsq_linear(A, rhs, bounds=(t_min, t_max), method='bvls').x
+        # Cables strictly inside their limits absorb the residual (those on a bound stay).
+        free = (t > t_min + 1e-9) & (t < t_max - 1e-9)
+        if free.any():
+            t[free] += np.linalg.pinv(W[:, free]) @ (b - W @ t)
+        if np.linalg.norm(W @ t - b) > 1e-6 * max(1.0, np.linalg.norm(b)):
+            raise InfeasibleTensionError(
+                f'no cable tensions in [{t_min:g}, {t_max:g}] N balance the load at '
+                f'position {np.round(position, 3).tolist()} (residual '
+                f'{np.linalg.norm(W @ t - b):.1f} N)')
+        slack = 1e-6 * (t_max - t_min)
+        if np.any(t < t_min - slack) or np.any(t > t_max + slack):
+            residual = np.linalg.norm(W @ np.clip(t, t_min, t_max) - b)
+            raise InfeasibleTensionError(
+                f'no cable tensions in [{t_min:g}, {t_max:g}] N balance the load at '
+                f'position {np.round(position, 3).tolist()} (residual {residual:.1f} N)')
+        return np.clip(t, t_min, t_max)
+
+    def inverse_kinematics(self, position, rotation, load_wrench, t_min, t_max):
+        """Trolley pose -> (unstretched lengths L0 (n,), stretched lengths L (n,), tensions)."""
+        t = self.tension_distribution(position, rotation, load_wrench, t_min, t_max)
+        lengths = self.lengths(position, rotation)
+        return self.unstretched_for(lengths, t), lengths, t
+
+
+def _cross(a, b):
+    """Cross product of (..., 3) arrays without np.cross's call overhead."""
+    a = np.asarray(a, float)
+    b = np.asarray(b, float)
+    return np.stack([a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
+                     a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+                     a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
+
+
+def gravity_wrench(mass, com_world_offset, gravity=9.81):
+    """Weight of the suspended mass as a wrench about the trolley origin (world axes)."""
+    f = np.array([0.0, 0.0, -mass * gravity])
+    return np.concatenate([f, np.cross(np.asarray(com_world_offset, float), f)])

@@ -1,0 +1,311 @@
+"""The FAST feed support as a PyBullet model: what is simulated how (no rclpy).
+
+Split between PyBullet and analytic models (chosen so that a 60 s run stays fast):
+
+- **Rigid bodies in PyBullet** (real dynamics, 1 kHz by default): the trolley as a free-floating
+  box; the 2-DOF orienting mechanism (ring on a hinge about the trolley x axis, upper platform on
+  a hinge about the ring's y axis); six legs, each a cylinder on a spherical joint under the
+  upper platform plus a rod on a prismatic joint; and the lower (feed) platform as a separate
+  body tied to the six rod tips by ``JOINT_POINT2POINT`` constraints -- a closed kinematic chain,
+  stiffened (``maxForce``, ``erp``, solver iterations) as NOTES.md found necessary. Leg and hinge
+  reaction forces shake the trolley: the dynamic coupling of Cheng et al.
+- **Actuators**: hinge and leg servos are PyBullet's implicit position/velocity motors with a
+  force limit (the actuator's local PD loop; implicit so that a stiff servo is stable at 1 kHz).
+  Commands are position + velocity, held first-order between updates.
+- **Cables analytically** (:mod:`cable_robot_pkg.fast.cables`): ten tension-only elastic cables
+  whose wrench is applied to the trolley every step; cable mass/sag and pulley friction are
+  neglected. Winches set the unstretched length, rate-limited to ``winch_speed_max``.
+- **Wind analytically** (:mod:`cable_robot_pkg.fast.wind`): force and torque on the trolley.
+- Collisions are off (nothing touches anything); towers are static visual bodies.
+"""
+import math
+
+import numpy as np
+import pybullet
+
+from cable_robot_pkg.fast.focal_surface import hinge_rotation
+from cable_robot_pkg.fast.rotations import quat_from_matrix
+from paramotion.gough_stewart import inverse_kinematics
+
+_EYE_Q = [0.0, 0.0, 0.0, 1.0]
+
+
+def _quat_from_matrix(R):
+    """PyBullet (x, y, z, w) quaternion of a rotation matrix."""
+    return list(quat_from_matrix(R))
+
+
+def _matrix(q):
+    return np.array(pybullet.getMatrixFromQuaternion(q)).reshape(3, 3)
+
+
+class FeedSupportPlant:
+    """Trolley + orienting mechanism + Gough-Stewart platform + cables + wind in one client."""
+
+    def __init__(self, cfg, bullet, wind=None, start_time=0.0, dt=None, solver_iterations=None):
+        self.cfg = cfg
+        self.b = bullet
+        self.wind = wind
+        self.t = start_time
+        raw = cfg.raw
+        self.dt = raw['sim']['physics_dt'] if dt is None else float(dt)
+        b = bullet
+        b.setTimeStep(self.dt)
+        iterations = raw['sim']['solver_iterations'] if solver_iterations is None \
+            else solver_iterations
+        b.setPhysicsEngineParameter(numSolverIterations=int(iterations))
+        self.geom = cfg.geometry
+        self.chain = cfg.chain
+        self.cables = cfg.cables
+        gs = raw['gough_stewart']
+        orient = raw['orienting']
+        cab = raw['cables']
+        self.winch_speed = cab['winch_speed_max']
+        self.t_max = cab['tension_max']
+
+        # Start at the first track target, cables at their planned tensions.
+        feed_p, feed_R = cfg.track.pose(start_time)
+        trolley_p, (alpha, beta), upper_p, upper_R = self.chain.coarse_targets(feed_p, feed_R)
+        t_plan = cfg.tension_targets(trolley_p, feed_R)
+        lengths = self.cables.lengths(trolley_p, np.eye(3))
+        self.unstretched = self.cables.unstretched_for(lengths, t_plan)
+        self.winch_cmd = self.unstretched.copy()
+        self.winch_rate_cmd = np.zeros(self.cables.n)
+        self.winch_cmd_time = start_time
+
+        self._build_towers(raw)
+        up_off = self.chain.upper_offset
+        hinge = np.asarray(self.chain.hinge_offset, float)
+        tsize = np.asarray(raw['trolley']['size'], float)
+        trolley_shape = b.createCollisionShape(b.GEOM_BOX, halfExtents=list(tsize / 2))
+        ring_shape = b.createCollisionShape(b.GEOM_BOX, halfExtents=[0.3, 0.3, 0.05])
+        upper_shape = b.createCollisionShape(
+            b.GEOM_CYLINDER, radius=gs['base_radius'], height=0.06)
+        leg_shape = b.createCollisionShape(b.GEOM_CYLINDER, radius=0.03, height=0.4)
+
+        base_local = self.geom.base_anchors - np.array([0.0, 0.0, up_off])   # upper link frame
+        rel_p, rel_R = self.chain.nominal_relative_pose()
+        plat_in_upper = rel_p + self.geom.platform_anchors @ rel_R.T          # upper plat frame
+        self.nominal_lengths = inverse_kinematics(self.geom, rel_p, rel_R)
+        leg_m = gs['leg_mass'] / 2.0
+
+        masses, shapes, positions, orients, inertial_pos = [], [], [], [], []
+        parents, jtypes, axes = [], [], []
+        # link 0: ring on hinge about trolley x
+        masses.append(orient['ring_mass'])
+        shapes.append(ring_shape)
+        positions.append(list(hinge))
+        orients.append(_EYE_Q)
+        inertial_pos.append([0, 0, 0])
+        parents.append(0)
+        jtypes.append(b.JOINT_REVOLUTE)
+        axes.append([1, 0, 0])
+        # link 1: upper platform on hinge about ring y; its link frame is at the hinge centre
+        masses.append(gs['upper_mass'])
+        shapes.append(upper_shape)
+        positions.append([0, 0, 0])
+        orients.append(_EYE_Q)
+        inertial_pos.append([0, 0, -up_off])
+        parents.append(1)
+        jtypes.append(b.JOINT_REVOLUTE)
+        axes.append([0, 1, 0])
+        self.leg_dirs = []
+        # Links in depth-first order (PyBullet's own order): cylinder i, then its rod.
+        for i in range(6):
+            d = plat_in_upper[i] - self.geom.base_anchors[i]
+            u = d / np.linalg.norm(d)
+            self.leg_dirs.append(u)
+            # Leg frame: z along the nominal leg (downward), built from u.
+            x = np.cross([0.0, 1.0, 0.0], u)
+            x = x / np.linalg.norm(x)
+            R_leg = np.column_stack([x, np.cross(u, x), u])
+            masses += [leg_m, leg_m]
+            shapes += [leg_shape, leg_shape]
+            positions += [list(base_local[i]), [0, 0, float(self.nominal_lengths[i])]]
+            orients += [_quat_from_matrix(R_leg), _EYE_Q]
+            inertial_pos += [[0, 0, 0.2], [0, 0, -0.2]]
+            cyl_index = 2 + 2 * i
+            parents += [2, cyl_index + 1]
+            jtypes += [b.JOINT_SPHERICAL, b.JOINT_PRISMATIC]
+            axes += [[0, 0, 1], [0, 0, 1]]
+        n_links = len(masses)
+        self.body = b.createMultiBody(
+            baseMass=raw['trolley']['mass'], baseCollisionShapeIndex=trolley_shape,
+            basePosition=list(trolley_p), baseOrientation=_EYE_Q,
+            linkMasses=masses, linkCollisionShapeIndices=shapes,
+            linkVisualShapeIndices=[-1] * n_links, linkPositions=positions,
+            linkOrientations=orients, linkInertialFramePositions=inertial_pos,
+            linkInertialFrameOrientations=[_EYE_Q] * n_links, linkParentIndices=parents,
+            linkJointTypes=jtypes, linkJointAxis=axes)
+        self.RING, self.UPPER = 0, 1
+        self.CYL = list(range(2, 14, 2))
+        self.ROD = list(range(3, 14, 2))
+        self.feed = b.createMultiBody(
+            baseMass=gs['feed_mass'],
+            baseCollisionShapeIndex=b.createCollisionShape(
+                b.GEOM_CYLINDER, radius=gs['platform_radius'], height=0.06),
+            basePosition=list(feed_p), baseOrientation=_quat_from_matrix(feed_R))
+        for body in (self.body, self.feed):
+            for link in range(-1, b.getNumJoints(body)):
+                b.setCollisionFilterGroupMask(body, link, 0, 0)
+                b.changeDynamics(body, link, linearDamping=0.0, angularDamping=0.0)
+        # Pose the chain at the start target.
+        b.resetJointState(self.body, self.RING, alpha)
+        b.resetJointState(self.body, self.UPPER, beta)
+        self.hinge_cmd = np.array([alpha, beta])
+        for i in range(6):
+            b.resetJointStateMultiDof(self.body, self.CYL[i], _EYE_Q)
+            b.setJointMotorControlMultiDof(self.body, self.CYL[i], b.POSITION_CONTROL,
+                                           targetPosition=_EYE_Q, positionGain=0.0,
+                                           velocityGain=0.0, force=[0.0, 0.0, 0.0])
+        self.constraints = []
+        for i in range(6):
+            # Constraint pivots are given relative to the link's centre of mass: the rod tip
+            # (rod link frame origin) is 0.2 m above the rod's CoM.
+            c = b.createConstraint(self.body, self.ROD[i], self.feed, -1, b.JOINT_POINT2POINT,
+                                   [0, 0, 0], [0, 0, 0.2],
+                                   list(self.geom.platform_anchors[i]))
+            b.changeConstraint(c, maxForce=1e7, erp=0.9)
+            self.constraints.append(c)
+        self.leg_cmd = self.nominal_lengths.copy()
+        self.leg_rate_cmd = np.zeros(6)
+        self.leg_cmd_time = start_time
+        self.hinge_gains = (orient['servo_position_gain'], orient['servo_velocity_gain'],
+                            orient['torque_max'])
+        self.leg_gains = (gs['servo_position_gain'], gs['servo_velocity_gain'],
+                          gs['drive_force_max'])
+        self.last_tensions = np.zeros(self.cables.n)
+        self.last_lengths = lengths
+        self.slack = np.zeros(self.cables.n, bool)
+        self.winch_rates = np.zeros(self.cables.n)
+        self.wind_force = np.zeros(3)
+        self.wind_torque = np.zeros(3)
+        # Settle the closed chain (constraints at rest) before time starts.
+        self.apply_commands(0.0)
+        for _ in range(5):
+            b.stepSimulation()
+
+    def _build_towers(self, raw):
+        b = self.b
+        for name, top in raw['towers'].items():
+            top = np.asarray(top, float)
+            shape = b.createCollisionShape(b.GEOM_BOX, halfExtents=[0.3, 0.3, top[2] / 2])
+            tower = b.createMultiBody(0.0, shape, basePosition=[top[0], top[1], top[2] / 2])
+            b.setCollisionFilterGroupMask(tower, -1, 0, 0)
+
+    # ------------------------------------------------------------------ commands
+    def set_winch_command(self, unstretched, rates=None, stamp=None):
+        """Winch set-point: unstretched lengths valid at ``stamp`` (default now) moving at
+        ``rates`` (a time-stamped trajectory point, held first-order)."""
+        self.winch_cmd = np.asarray(unstretched, float).copy()
+        self.winch_rate_cmd = np.zeros(self.cables.n) if rates is None else np.asarray(rates)
+        self.winch_cmd_time = self.t if stamp is None else min(float(stamp), self.t)
+
+    def set_leg_command(self, lengths, rates=None, stamp=None):
+        """Leg set-point: lengths valid at ``stamp`` (default now) moving at ``rates``."""
+        self.leg_cmd = np.asarray(lengths, float).copy()
+        self.leg_rate_cmd = np.zeros(6) if rates is None else np.asarray(rates, float)
+        self.leg_cmd_time = self.t if stamp is None else min(float(stamp), self.t)
+
+    def set_hinge_command(self, alpha, beta):
+        self.hinge_cmd = np.array([alpha, beta], float)
+
+    def apply_commands(self, since):
+        """Servo targets (first-order hold of position + velocity commands)."""
+        b = self.b
+        kp, kv, fmax = self.leg_gains
+        target = np.clip(self.leg_cmd + self.leg_rate_cmd * since, self.geom.leg_min,
+                         self.geom.leg_max)
+        for i in range(6):
+            b.setJointMotorControl2(self.body, self.ROD[i], b.POSITION_CONTROL,
+                                    targetPosition=float(target[i] - self.nominal_lengths[i]),
+                                    targetVelocity=float(self.leg_rate_cmd[i]),
+                                    positionGain=kp, velocityGain=kv, force=fmax)
+        kp, kv, tmax = self.hinge_gains
+        for j, link in enumerate((self.RING, self.UPPER)):
+            b.setJointMotorControl2(self.body, link, b.POSITION_CONTROL,
+                                    targetPosition=float(self.hinge_cmd[j]), positionGain=kp,
+                                    velocityGain=kv, force=tmax)
+
+    # ------------------------------------------------------------------ stepping
+    def step(self):
+        """Advance one physics step: winches, cable and wind wrenches, servos, PyBullet."""
+        b = self.b
+        dt = self.dt
+        # Winches: unstretched length follows the command at most at the speed limit.
+        goal = self.winch_cmd + self.winch_rate_cmd * (self.t - self.winch_cmd_time)
+        step = np.clip(goal - self.unstretched, -self.winch_speed * dt, self.winch_speed * dt)
+        self.unstretched = self.unstretched + step
+        rates = step / dt
+        pos, q = b.getBasePositionAndOrientation(self.body)
+        lin, ang = b.getBaseVelocity(self.body)
+        R = _matrix(q)
+        f, tq, tens, lengths, slack = self.cables.wrench(np.array(pos), R, np.array(lin),
+                                                         np.array(ang), self.unstretched, rates)
+        self.last_tensions, self.last_lengths, self.slack = tens, lengths, slack
+        self.winch_rates = rates
+        if self.wind is not None:
+            wf, wt = self.wind.wrench(self.t, R)
+            self.wind_force, self.wind_torque = wf, wt
+            f = f + wf
+            tq = tq + wt
+        b.applyExternalForce(self.body, -1, list(f), list(pos), b.WORLD_FRAME)
+        b.applyExternalTorque(self.body, -1, list(tq), b.WORLD_FRAME)
+        self.apply_commands(self.t - self.leg_cmd_time)
+        b.stepSimulation()
+        self.t += dt
+
+    # ------------------------------------------------------------------ state
+    def trolley_pose(self):
+        pos, q = self.b.getBasePositionAndOrientation(self.body)
+        return np.array(pos), _matrix(q)
+
+    def trolley_velocity(self):
+        lin, ang = self.b.getBaseVelocity(self.body)
+        return np.array(lin), np.array(ang)
+
+    def upper_pose(self):
+        """Upper platform centre and orientation (world)."""
+        st = self.b.getLinkState(self.body, self.UPPER, computeForwardKinematics=True)
+        R = _matrix(st[5])
+        return np.array(st[4]) - self.chain.upper_offset * R[:, 2], R
+
+    def feed_pose(self):
+        pos, q = self.b.getBasePositionAndOrientation(self.feed)
+        return np.array(pos), _matrix(q)
+
+    def hinge_angles(self):
+        return np.array([self.b.getJointState(self.body, j)[0] for j in (self.RING, self.UPPER)])
+
+    def leg_lengths(self):
+        """Leg lengths from the prismatic joints (the actuators' encoders), rates and forces."""
+        states = self.b.getJointStates(self.body, self.ROD)
+        q = np.array([s[0] for s in states]) + self.nominal_lengths
+        v = np.array([s[1] for s in states])
+        f = np.array([s[3] for s in states])
+        return q, v, f
+
+    def leg_lengths_geometric(self):
+        """Leg lengths between the joint centres of the two platforms (for checking)."""
+        up, Ru = self.upper_pose()
+        fp, Rf = self.feed_pose()
+        rel_p = Ru.T @ (fp - up)
+        return inverse_kinematics(self.geom, rel_p, Ru.T @ Rf)
+
+    def nominal_upper(self, alpha, beta):
+        """Upper platform rotation relative to a level trolley for hinge angles."""
+        return hinge_rotation(alpha, beta)
+
+
+def make_client():
+    """A headless PyBullet client (DIRECT) with z-up gravity."""
+    from pybullet_utils.bullet_client import BulletClient
+    client = BulletClient(connection_mode=pybullet.DIRECT)
+    client.setGravity(0.0, 0.0, -9.81)
+    return client
+
+
+def angle_deg(R_a, R_b):
+    """Angle (deg) of the rotation between two orientations."""
+    c = (np.trace(np.asarray(R_a).T @ np.asarray(R_b)) - 1.0) / 2.0
+    return math.degrees(math.acos(max(-1.0, min(1.0, c))))

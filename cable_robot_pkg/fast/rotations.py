@@ -1,0 +1,68 @@
+"""Small, fast rotation helpers for single poses (scalar math; no per-call library overhead).
+
+Used in the 200 Hz loops, where ``scipy.spatial.transform.Rotation`` costs more in call
+overhead than the arithmetic. Quaternions here are ROS order (x, y, z, w).
+"""
+import math
+
+import numpy as np
+
+
+def matrix_from_rotvec(v):
+    """Rotation matrix of a rotation vector (Rodrigues)."""
+    x, y, z = float(v[0]), float(v[1]), float(v[2])
+    th = math.sqrt(x * x + y * y + z * z)
+    if th < 1e-12:
+        return np.array([[1.0, -z, y], [z, 1.0, -x], [-y, x, 1.0]])
+    kx, ky, kz = x / th, y / th, z / th
+    c, s = math.cos(th), math.sin(th)
+    C = 1.0 - c
+    return np.array([
+        [c + kx * kx * C, kx * ky * C - kz * s, kx * kz * C + ky * s],
+        [ky * kx * C + kz * s, c + ky * ky * C, ky * kz * C - kx * s],
+        [kz * kx * C - ky * s, kz * ky * C + kx * s, c + kz * kz * C]])
+
+
+def rotvec_from_matrix(R):
+    """Rotation vector of a rotation matrix (via the quaternion, robust near 0 and pi)."""
+    x, y, z, w = quat_from_matrix(R)
+    if w < 0.0:
+        x, y, z, w = -x, -y, -z, -w
+    s = math.sqrt(x * x + y * y + z * z)
+    if s < 1e-12:
+        return np.array([2.0 * x, 2.0 * y, 2.0 * z])
+    angle = 2.0 * math.atan2(s, w)
+    return np.array([x, y, z]) * (angle / s)
+
+
+def quat_from_matrix(R):
+    """(x, y, z, w) unit quaternion of a rotation matrix (Shepperd's method)."""
+    m00, m01, m02 = float(R[0][0]), float(R[0][1]), float(R[0][2])
+    m10, m11, m12 = float(R[1][0]), float(R[1][1]), float(R[1][2])
+    m20, m21, m22 = float(R[2][0]), float(R[2][1]), float(R[2][2])
+    tr = m00 + m11 + m22
+    if tr >= max(m00, m11, m22):
+        t = math.sqrt(1.0 + tr) * 2.0
+        q = ((m21 - m12) / t, (m02 - m20) / t, (m10 - m01) / t, 0.25 * t)
+    elif m00 >= m11 and m00 >= m22:
+        t = math.sqrt(1.0 + m00 - m11 - m22) * 2.0
+        q = (0.25 * t, (m01 + m10) / t, (m02 + m20) / t, (m21 - m12) / t)
+    elif m11 >= m22:
+        t = math.sqrt(1.0 + m11 - m00 - m22) * 2.0
+        q = ((m01 + m10) / t, 0.25 * t, (m12 + m21) / t, (m02 - m20) / t)
+    else:
+        t = math.sqrt(1.0 + m22 - m00 - m11) * 2.0
+        q = ((m02 + m20) / t, (m12 + m21) / t, 0.25 * t, (m10 - m01) / t)
+    n = math.sqrt(sum(c * c for c in q))
+    return tuple(c / n for c in q)
+
+
+def matrix_from_quat(q):
+    """Rotation matrix of an (x, y, z, w) quaternion (normalised first)."""
+    x, y, z, w = (float(c) for c in q)
+    n = math.sqrt(x * x + y * y + z * z + w * w)
+    x, y, z, w = x / n, y / n, z / n, w / n
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])

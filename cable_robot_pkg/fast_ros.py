@@ -1,0 +1,101 @@
+"""Message helpers shared by the FAST nodes: poses and joint states <-> numpy.
+
+Topic names live here too, so the nodes, the scenario and the tests agree on them.
+"""
+import numpy as np
+from geometry_msgs.msg import PoseStamped
+from sensor_msgs.msg import JointState
+
+from cable_robot_pkg.fast.config import load_config
+from cable_robot_pkg.fast.rotations import matrix_from_quat, quat_from_matrix
+from paramotion.errors import UserError
+
+TOPICS = {
+    'truth_trolley': '/fast/ground_truth/trolley',
+    'truth_upper': '/fast/ground_truth/upper_platform',
+    'truth_feed': '/fast/ground_truth/feed',
+    'tracker_trolley': '/fast/tracker/trolley',
+    'tracker_upper': '/fast/tracker/upper_platform',
+    'tracker_feed': '/fast/tracker/feed',
+    'feed_target': '/fast/feed_target',
+    'trolley_target': '/fast/trolley_target',
+    'cables_state': '/fast/cables/state',
+    'winches_state': '/fast/winches/state',
+    'cables_command': '/fast/cables/command',
+    'legs_state': '/fast/legs/state',
+    'legs_command': '/fast/legs/command',
+    'orienting_state': '/fast/orienting/state',
+    'orienting_command': '/fast/orienting/command',
+    'wind': '/fast/wind',
+    'diagnostics': '/diagnostics',
+}
+
+LEG_NAMES = [f'leg{i + 1}' for i in range(6)]
+HINGE_NAMES = ['hinge_x', 'hinge_y']
+
+
+def config_from_param(path):
+    """Validated config from a node's ``config`` parameter ('' = the packaged default)."""
+    return load_config(path or None)
+
+
+def stamp_seconds(stamp):
+    """builtin_interfaces/Time -> float seconds."""
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+def pose_msg(stamp, frame_id, position, rotation):
+    """PoseStamped from a position (3,) and rotation matrix (3, 3)."""
+    msg = PoseStamped()
+    msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
+    p = msg.pose.position
+    p.x, p.y, p.z = (float(v) for v in position)
+    q = quat_from_matrix(rotation)   # x, y, z, w
+    o = msg.pose.orientation
+    o.x, o.y, o.z, o.w = (float(v) for v in q)
+    return msg
+
+
+def pose_from_msg(msg):
+    """(position (3,), rotation (3, 3)) of a PoseStamped; NaN-safe (returns NaN arrays)."""
+    p = msg.pose.position
+    o = msg.pose.orientation
+    position = np.array([p.x, p.y, p.z], float)
+    q = np.array([o.x, o.y, o.z, o.w], float)
+    if not np.all(np.isfinite(q)) or np.linalg.norm(q) < 1e-9:
+        return position, np.full((3, 3), np.nan)
+    return position, matrix_from_quat(q)
+
+
+def joint_state_msg(stamp, names, position, velocity=None, effort=None):
+    """sensor_msgs/JointState with float lists."""
+    msg = JointState()
+    msg.header.stamp = stamp
+    msg.name = list(names)
+    msg.position = [float(v) for v in position]
+    if velocity is not None:
+        msg.velocity = [float(v) for v in velocity]
+    if effort is not None:
+        msg.effort = [float(v) for v in effort]
+    return msg
+
+
+def joint_vector(msg, names, field='position'):
+    """Values of ``field`` in ``names`` order, or None if the message does not match."""
+    values = getattr(msg, field)
+    if len(values) != len(msg.name):
+        return None
+    index = {n: i for i, n in enumerate(msg.name)}
+    if any(n not in index for n in names):
+        return None
+    return np.array([values[index[n]] for n in names], float)
+
+
+def check_config_param(path):
+    """One-line reason if the ``config`` parameter does not load, else None."""
+    try:
+        load_config(path or None)
+    except UserError as exc:
+        return f"parameter 'config': {exc}"
+    return None

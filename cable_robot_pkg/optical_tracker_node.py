@@ -1,0 +1,140 @@
+"""fast_tracker: optical trackers of the trolley, upper platform and feed (terminal feedback).
+
+The FAST field model closes its loops on optical measurements of the trolley and of the feed
+(Lu, Zhu, Ren: "direct terminal feedback from the optical sensors"). This simulated sensor
+reads the simulator's ground truth (it is a sensor model, so truth is its input) and, at
+``rate`` Hz of sim time, captures each body's pose, adds Gaussian noise (``noise_position`` m
+per axis, ``noise_orientation_deg`` per axis as a small rotation) and publishes it
+``latency`` seconds later on ``/fast/tracker/{trolley,upper_platform,feed}``
+(geometry_msgs/PoseStamped, ``map``). ``header.stamp`` is the *capture* time, as a real
+tracker's timestamp, so a consumer can measure and compensate the delay.
+
+Faults: ``dropout_probability`` drops single frames; ``dropout_start``/``dropout_duration``
+(sim seconds) blank every body for a window (line of sight lost); ``nan_probability`` sends a
+frame of NaNs (a failed fit). The sensor is clocked by the ground-truth stream (capture on the
+first truth sample at or after each ``1/rate`` tick), so latency resolution is the simulator's
+publish period (5 ms by default).
+"""
+import math
+from collections import deque
+
+import numpy as np
+from geometry_msgs.msg import PoseStamped
+
+from cable_robot_pkg.fast.rotations import matrix_from_rotvec
+from cable_robot_pkg.fast_ros import TOPICS, pose_from_msg, pose_msg, stamp_seconds
+from paramotion.node import Param, ParamotionNode, run_node
+from paramotion.qos import SENSOR_QOS, STATE_QOS
+
+BODIES = (('trolley', 'truth_trolley', 'tracker_trolley'),
+          ('upper_platform', 'truth_upper', 'tracker_upper'),
+          ('feed', 'truth_feed', 'tracker_feed'))
+
+
+class OpticalTrackerNode(ParamotionNode):
+    """Noisy, delayed, sometimes missing pose measurements of the three bodies."""
+
+    PARAMS = (
+        Param('rate', 200.0, 'Capture rate (Hz, sim time).', min=1.0, max=2000.0,
+              read_only=True),
+        Param('latency', 0.02, 'Delay from capture to publication (s).', min=0.0, max=0.2),
+        Param('noise_position', 0.001, 'Position noise, 1 sigma per axis (m).', min=0.0,
+              max=0.1),
+        Param('noise_orientation_deg', 0.01, 'Orientation noise, 1 sigma per axis (deg).',
+              min=0.0, max=5.0),
+        Param('dropout_probability', 0.0, 'Probability that a frame is lost.', min=0.0,
+              max=1.0),
+        Param('dropout_start', -1.0, 'Start of a total dropout window (sim s; < 0: none).',
+              min=-1.0, max=1e6),
+        Param('dropout_duration', 0.0, 'Length of the dropout window (s).', min=0.0,
+              max=1e6),
+        Param('nan_probability', 0.0, 'Probability that a frame is all NaN.', min=0.0,
+              max=1.0),
+        Param('seed', 1, 'Seed of the noise generator.', min=0, max=2 ** 31 - 1,
+              read_only=True),
+    )
+
+    def __init__(self, node_name='fast_tracker', **kwargs):
+        super().__init__(node_name, **kwargs)
+        self.rng = np.random.default_rng(self.params.seed)
+        self.truth = {}
+        self.last_capture = {}
+        self.queue = deque()
+        self.published = 0
+        self.dropped = 0
+        self.pubs = {}
+        for body, truth_key, out_key in BODIES:
+            self.create_subscription(PoseStamped, TOPICS[truth_key],
+                                     lambda m, b=body: self._on_truth(b, m), STATE_QOS)
+            self.pubs[body] = self.create_publisher(PoseStamped, TOPICS[out_key], SENSOR_QOS)
+        self.next_capture = 0.0
+
+    def _on_truth(self, body, msg):
+        """Event-driven sensor: the camera frame clock is the truth stream's sim time, so
+        capture and release happen exactly when due (a timer callback could lag a period)."""
+        self.truth[body] = msg
+        if body != BODIES[-1][0]:
+            return
+        t = stamp_seconds(msg.header.stamp)
+        if t + 1e-9 >= self.next_capture:
+            self.next_capture = t + 1.0 / self.params.rate - 1e-9
+            self._tick(t)
+        else:
+            self._release(t)
+
+    def _in_window(self, t):
+        p = self.params
+        return p.dropout_start >= 0.0 and p.dropout_start <= t < p.dropout_start + \
+            p.dropout_duration
+
+    def _tick(self, now):
+        p = self.params
+        sig_r = math.radians(p.noise_orientation_deg)
+        for body, _, _ in BODIES:
+            msg = self.truth.get(body)
+            if msg is None:
+                continue
+            t_cap = stamp_seconds(msg.header.stamp)
+            # Draw every random number every time: the noise does not depend on the faults.
+            dn = self.rng.normal(0.0, p.noise_position, 3)
+            dr = self.rng.normal(0.0, sig_r, 3)
+            drop = self.rng.random() < p.dropout_probability
+            nan = self.rng.random() < p.nan_probability
+            if self.last_capture.get(body) == t_cap:
+                continue   # this truth sample was already captured
+            self.last_capture[body] = t_cap
+            position, rotation = pose_from_msg(msg)
+            if drop or self._in_window(t_cap):
+                self.dropped += 1
+                continue
+            if nan:
+                position = np.full(3, np.nan)
+                rotation = np.full((3, 3), np.nan)
+            else:
+                position = position + dn
+                rotation = matrix_from_rotvec(dr) @ rotation
+            self.queue.append((t_cap + p.latency, body, msg.header.stamp, position, rotation))
+        self._release(now)
+
+    def _release(self, now):
+        while self.queue and self.queue[0][0] <= now + 1e-9:
+            _, body, stamp, position, rotation = self.queue.popleft()
+            if np.all(np.isfinite(rotation)):
+                out = pose_msg(stamp, 'map', position, rotation)
+            else:
+                out = PoseStamped()
+                out.header.stamp = stamp
+                out.header.frame_id = 'map'
+                out.pose.position.x = out.pose.position.y = out.pose.position.z = math.nan
+                o = out.pose.orientation
+                o.x = o.y = o.z = o.w = math.nan
+            self.pubs[body].publish(out)
+            self.published += 1
+
+
+def main(args=None):
+    run_node(OpticalTrackerNode, args)
+
+
+if __name__ == '__main__':
+    main()
