@@ -17,7 +17,6 @@ Publishes: ``/climber/leg_command`` (trajectory_msgs/JointTrajectory, one point)
 ``/climber/status`` (diagnostic_msgs/DiagnosticStatus, latched: state, cycle, refusal reason).
 """
 import math
-import sys
 
 import numpy as np
 from builtin_interfaces.msg import Duration
@@ -38,9 +37,7 @@ from climber_pkg.gait import (
     StatusUpdate,
 )
 from climber_pkg.robot import load_robot_config
-from climber_pkg.shutdown import tolerate_shutdown
 from paramotion import gough_stewart as gs
-from paramotion.errors import UserError
 from paramotion.node import Param, ParamotionNode, run_node
 from paramotion.qos import LATCHED_QOS, SENSOR_QOS, STATE_QOS
 
@@ -155,7 +152,6 @@ class ClimberPlannerNode(ParamotionNode):
             return
         self.gait.update_range(self._now(), ring, int(frame[len(prefix):]), msg.range)
 
-    @tolerate_shutdown
     def _tick(self):
         now = self._now()
         for action in self.gait.tick(now):
@@ -236,11 +232,7 @@ class ClimberPlannerNode(ParamotionNode):
 
 
 def main(args=None):
-    try:
-        run_node(ClimberPlannerNode, args)
-    except UserError as exc:          # unreadable trunk or robot file: one line, no traceback
-        print(f'error: {exc}', file=sys.stderr)
-        sys.exit(2)
+    run_node(ClimberPlannerNode, args)
 
 
 if __name__ == '__main__':

@@ -21,7 +21,6 @@ Publishes: ``/climber/joint_states`` (sensor_msgs/JointState, encoder lengths m,
 (diagnostic_msgs/DiagnosticStatus: ring-trunk contacts, interlock trips), ``/clock``.
 """
 import math
-import sys
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
@@ -32,7 +31,6 @@ from trajectory_msgs.msg import JointTrajectory
 
 from climber_pkg.kinematic_model import initial_pose_on_trunk
 from climber_pkg.robot import load_robot_config
-from climber_pkg.shutdown import tolerate_shutdown
 from climber_pkg.trunk import Trunk
 from paramotion import gough_stewart as gs
 from paramotion.errors import ParameterError, UserError
@@ -284,7 +282,6 @@ class ClimberSimNode(SimulationNode):
             out.append((np.array(pos), matrix_xyzw(orn)))
         return out
 
-    @tolerate_shutdown
     def publish_state(self):
         b = self.bullet
         stamp = self.stamp()
@@ -327,11 +324,7 @@ class ClimberSimNode(SimulationNode):
 
 
 def main(args=None):
-    try:
-        run_node(ClimberSimNode, args)
-    except UserError as exc:          # unreadable trunk or robot file: one line, no traceback
-        print(f'error: {exc}', file=sys.stderr)
-        sys.exit(2)
+    run_node(ClimberSimNode, args)
 
 
 if __name__ == '__main__':

@@ -9,17 +9,16 @@ Gaussian noise, ``+inf`` with no echo (past the top of the structure or beyond m
 ``-inf`` below min range, NaN with probability ``fault_probability``, and no message at all
 with probability ``dropout_probability``.
 """
-import sys
 
 import numpy as np
 from geometry_msgs.msg import PoseArray
 from sensor_msgs.msg import Range
 
 from climber_pkg.robot import load_robot_config
-from climber_pkg.shutdown import tolerate_shutdown
 from climber_pkg.trunk import Trunk
 from paramotion import gough_stewart as gs
-from paramotion.errors import ParameterError, UserError
+from paramotion.errors import ParameterError
+from paramotion.messages import range_msg
 from paramotion.node import Param, ParamotionNode, run_node
 from paramotion.qos import SENSOR_QOS
 from paramotion.range_sensing import rep117_reading
@@ -79,7 +78,6 @@ class ClimberUltrasonicNode(ParamotionNode):
                 pos + self.origins @ rot.T, self.dirs @ rot.T, self.robot.sensor_max_range))
         return self._cache[1]
 
-    @tolerate_shutdown
     def _measure(self):
         if self.pose is None:
             return
@@ -92,23 +90,12 @@ class ClimberUltrasonicNode(ParamotionNode):
                                      p.noise_std, self.rng, fault=fault)
             if drop:
                 continue
-            msg = Range()
-            msg.header.stamp = stamp
-            msg.header.frame_id = f'ring{p.ring}_us{k}'
-            msg.radiation_type = Range.ULTRASOUND
-            msg.field_of_view = float(rb.sensor_fov)
-            msg.min_range = float(rb.sensor_min_range)
-            msg.max_range = float(rb.sensor_max_range)
-            msg.range = float(reading)
-            self.pub.publish(msg)
+            self.pub.publish(range_msg(stamp, f'ring{p.ring}_us{k}', reading,
+                                       rb.sensor_min_range, rb.sensor_max_range, rb.sensor_fov))
 
 
 def main(args=None):
-    try:
-        run_node(ClimberUltrasonicNode, args)
-    except UserError as exc:          # unreadable trunk or robot file: one line, no traceback
-        print(f'error: {exc}', file=sys.stderr)
-        sys.exit(2)
+    run_node(ClimberUltrasonicNode, args)
 
 
 if __name__ == '__main__':

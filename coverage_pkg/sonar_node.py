@@ -23,6 +23,7 @@ from sensor_msgs.msg import LaserScan, Range
 
 from coverage_pkg.sonar import SonarRing, simulate_ring, yaw_of
 from coverage_pkg.world import load_world_param
+from paramotion.messages import range_msg
 from paramotion.node import Param, ParamotionNode, run_node
 from paramotion.qos import SENSOR_QOS
 
@@ -108,15 +109,8 @@ class CoverageSonarNode(ParamotionNode):
         # The per-transducer stream is only built when someone listens (16 messages a sweep).
         per_transducer = self.range_pub.get_subscription_count() > 0
         for k, value in enumerate(ranges if per_transducer else []):
-            msg = Range()
-            msg.header.stamp = stamp
-            msg.header.frame_id = f'sonar_{k}'
-            msg.radiation_type = Range.ULTRASOUND
-            msg.field_of_view = float(p.beam_width)
-            msg.min_range = float(p.min_range)
-            msg.max_range = float(p.max_range)
-            msg.range = float(value)
-            self.range_pub.publish(msg)
+            self.range_pub.publish(range_msg(stamp, f'sonar_{k}', value, p.min_range,
+                                             p.max_range, p.beam_width))
         scan = LaserScan()
         scan.header.stamp = stamp
         scan.header.frame_id = 'base_link'
