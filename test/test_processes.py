@@ -10,8 +10,10 @@ def test_smoke_graph_across_processes(tmp_path):
     info = bag_info(tmp_path / 'bag')
     assert info.complete, info.problem
     assert set(info.topics) == set(TOPICS)
-    # Time started only once the recorder listened: the first seconds were recorded too.
-    assert info.start_ns <= 50_000_000
+    # Time started only once the recorder listened (without that gate the first 2.5-3.5 s
+    # were missing). Matching is seen from the simulator's side; on a loaded machine the
+    # first best-effort samples to a just-matched reader can still be lost (seen: 130 ms).
+    assert info.start_ns <= 500_000_000
     assert info.topics['/smoke/range'].count >= 100
 
 
