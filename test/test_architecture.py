@@ -1,0 +1,34 @@
+"""Architecture rule: the algorithm modules (each paper's math) import no rclpy."""
+import subprocess
+import sys
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+
+ALGORITHMS = [
+    'paramotion.gough_stewart', 'paramotion.range_sensing', 'paramotion.smoke.control',
+    'paramotion.voronoi.predicates', 'paramotion.voronoi.distance', 'paramotion.voronoi.planar',
+    'paramotion.voronoi.diagram', 'paramotion.voronoi.planner', 'paramotion.voronoi.spatial321',
+    'coverage_pkg.world', 'coverage_pkg.sonar', 'coverage_pkg.mapping', 'coverage_pkg.gvd',
+    'coverage_pkg.morse', 'coverage_pkg.hierarchical_graph', 'coverage_pkg.planner',
+    'coverage_pkg.cvs', 'coverage_pkg.baseline',
+    'climber_pkg.trunk', 'climber_pkg.correction', 'climber_pkg.prediction', 'climber_pkg.gait',
+    'cable_robot_pkg.fast.config', 'cable_robot_pkg.fast.cables', 'cable_robot_pkg.fast.wind',
+    'cable_robot_pkg.fast.focal_surface', 'cable_robot_pkg.fast.pid',
+    'cable_robot_pkg.fast.isolation', 'cable_robot_pkg.fast.plant',
+    'cable_robot_pkg.cdrpm.description', 'cable_robot_pkg.cdrpm.kinematics',
+    'cable_robot_pkg.cdrpm.collisions', 'cable_robot_pkg.cdrpm.workspace',
+    'cable_robot_pkg.cdrpm.wrench_closure',
+]
+
+
+def test_algorithm_modules_do_not_import_rclpy():
+    code = ('import sys, importlib\n'
+            f'for m in {ALGORITHMS!r}:\n'
+            '    importlib.import_module(m)\n'
+            "bad = sorted(m for m in sys.modules if m == 'rclpy' or m.startswith('rclpy.'))\n"
+            'print(bad)\n')
+    proc = subprocess.run([sys.executable, '-c', code], cwd=REPO, capture_output=True,
+                          text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert proc.stdout.strip().splitlines()[-1] == '[]'
