@@ -189,3 +189,9 @@ def test_recorder_killed_with_sigkill_leaves_complete_chunks(tmp_path):
                                              + len(got))]
     reindex(bag)
     assert (bag / 'metadata.yaml').is_file()
+
+
+def test_metadata_names_the_ros_distro(recorded):
+    bag, _ = recorded
+    meta = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    assert meta['ros_distro'] == 'jazzy'

@@ -112,10 +112,14 @@ class BagWriter:
         self._dirty = False
 
     def close(self):
-        """Finish the MCAP summary and write metadata.yaml."""
+        """Finish the MCAP summary and write metadata.yaml (ros_distro: jazzy, as rosbag2
+        would; the rosbags library writes its own name there)."""
         if self._writer is not None:
             self._writer.close()
             self._writer = None
+            meta = self.path / 'metadata.yaml'
+            text = meta.read_text()
+            meta.write_text(text.replace('  ros_distro: rosbags\n', '  ros_distro: jazzy\n', 1))
 
     def __enter__(self):
         return self
