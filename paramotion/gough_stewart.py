@@ -24,6 +24,7 @@ Everything is numpy only (no rclpy) so that it can be unit-tested and reused alo
 ``python -m climber_pkg.fk_benchmark`` prints solves per second and iteration counts.
 """
 import math
+import threading
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -406,10 +407,39 @@ class _FKCache:
         self.t_base = np.zeros((7, 6))
         self.t_base[:3, :3] = np.eye(3)
         self.ones3 = np.ones(3)
+        self.m_base = np.zeros((10, 3))
+        self.m_base[4:] = self.m_tail
+        self.local = threading.local()     # per-thread work arrays, see buffers()
+
+    def buffers(self):
+        """This thread's work arrays (reused across solves; every solve overwrites them).
+
+        Returns ``(m, m_head, legs, jac, jac_l, jac_e, jac_n, jac_6, legs_row, qe, qe_flat,
+        tmat, tmat_e, inv_c, inv_c_col)``: ``m`` (10, 3) with its constant tail ``-b`` set
+        and ``m_head`` its flat view; ``jac`` (7, 7) whose row 6 starts with three zeros that
+        are never written, with views of its blocks; ``qe`` (6, 3, 4) for ``quad2 e``;
+        ``tmat`` (7, 6) whose identity and zero blocks are never written (``tmat_e`` is its
+        lower-right block); ``inv_c`` (6,) for 1 / C and ``inv_c_col`` its (6, 1) view.
+        Allocating them per solve cost more than a tenth of the solve time.
+        """
+        bufs = getattr(self.local, 'bufs', None)
+        if bufs is None:
+            m = self.m_base.copy()
+            legs = np.empty((6, 3))
+            jac = np.zeros((7, 7))
+            qe_flat = np.empty(72)
+            tmat = self.t_base.copy()
+            inv_c = np.empty(6)
+            bufs = (m, m.reshape(30), legs, jac, jac[:6, :3], jac[:6, 3:].reshape(6, 1, 4),
+                    jac[6, 3:], jac[:6], legs[:, None, :], qe_flat.reshape(6, 3, 4), qe_flat,
+                    tmat, tmat[3:, 3:], inv_c, inv_c[:, None])
+            self.local.bufs = bufs
+        return bufs
 
 
 _FK_CACHES = {}
-_all_true = np.logical_and.reduce
+_new_tuple = tuple.__new__     # builds an FKResult without NamedTuple.__new__'s overhead
+_dot = np.dot            # np.dot has less per-call overhead than matmul on tiny arrays
 # id(rotation) -> (rotation, Euler parameters) of the last few (read-only) FK rotations: the
 # rotation object itself is kept, so an id is never matched by a different, recycled array.
 _RECENT_QUATERNIONS = {}
@@ -423,15 +453,6 @@ def _fk_cache(geom):
         cache = (geom, _FKCache(geom))
         _FK_CACHES[id(geom)] = cache
     return cache[1]
-
-
-def _haug_rows(e0, e1, e2, e3, r0, r1, r2):
-    """``[A^T; r]`` flattened (12,) for Haug's ``A = (2 e0^2 - 1) I + 2 (e e^T + e0 e~)``."""
-    w = 2 * e0 * e0 - 1
-    return (w + 2 * e1 * e1, 2 * (e1 * e2 + e0 * e3), 2 * (e1 * e3 - e0 * e2),
-            2 * (e1 * e2 - e0 * e3), w + 2 * e2 * e2, 2 * (e2 * e3 + e0 * e1),
-            2 * (e1 * e3 + e0 * e2), 2 * (e2 * e3 - e0 * e1), w + 2 * e3 * e3,
-            r0, r1, r2)
 
 
 def forward_kinematics(geom, lengths, guess_position, guess_rotation, tol=1e-12, max_iter=30,
@@ -453,46 +474,62 @@ def forward_kinematics(geom, lengths, guess_position, guess_rotation, tol=1e-12,
     cl = c.tolist()
     if not (min(cl) >= geom.leg_min and max(cl) <= geom.leg_max and math.isfinite(sum(cl))):
         check_lengths(geom, c)            # raises with the numbers (NaN included)
-    cache = _fk_cache(geom)
-    aug, quad2 = cache.aug, cache.quad2
-    c2 = c * c
-    tol2c = (2.0 * tol) * c
+    cache = _FK_CACHES.get(id(geom))
+    cache = cache[1] if cache is not None and cache[0] is geom else _fk_cache(geom)
+    aug, quad2, ones3 = cache.aug, cache.quad2, cache.ones3
+    # Squared lengths and per-leg tolerances on |L|^2 - C^2 as plain floats: the residual test
+    # is done without numpy calls (same IEEE arithmetic as the array expressions).
+    c0_, c1_, c2_, c3_, c4_, c5_ = cl
+    s0_, s1_, s2_, s3_, s4_, s5_ = (c0_ * c0_, c1_ * c1_, c2_ * c2_, c3_ * c3_, c4_ * c4_,
+                                    c5_ * c5_)
+    tw = 2.0 * tol
+    t0_, t1_, t2_, t3_, t4_, t5_ = tw * c0_, tw * c1_, tw * c2_, tw * c3_, tw * c4_, tw * c5_
     r0, r1, r2 = np.asarray(guess_position, dtype=float).reshape(3).tolist()
     known = _RECENT_QUATERNIONS.get(id(guess_rotation))
     if known is not None and known[0] is guess_rotation:
         e0, e1, e2, e3 = known[1]
     else:
         e0, e1, e2, e3 = _quat_from_matrix_scalar(guess_rotation)
-    m = np.empty((10, 3))
-    m[4:] = cache.m_tail
-    m_head = m.reshape(30)
-    ones3 = cache.ones3
-    legs = np.empty((6, 3))
     # Solve phi_q x = [|L|^2 - C^2, e.e - 1], i.e. x = 2 dq, so that phi_q's leg columns are
-    # L itself.
-    jac = np.zeros((7, 7))
-    jac_e = jac[:6, 3:].reshape(6, 1, 4)
-    rhs = np.empty(7)
-    res = rhs[:6]
+    # L itself. jac_n (phi_q's last row, e) doubles as the array of e.
+    try:
+        bufs = cache.local.bufs
+    except AttributeError:                 # first solve on this thread
+        bufs = cache.buffers()
+    (m, m_head, legs, jac, jac_l, jac_e, jac_n, jac_6, legs_row, qe, qe_flat, tmat, tmat_e,
+     inv_c, inv_c_col) = bufs
     converged = False
     it = 0
     while True:
-        m_head[:12] = _haug_rows(e0, e1, e2, e3, r0, r1, r2)
-        np.matmul(aug, m, out=legs)
-        np.subtract((legs * legs) @ ones3, c2, out=res)
+        # m_head[:12] = [A^T; r] flattened, Haug's A = (2 e0^2 - 1) I + 2 (e e^T + e0 e~)
+        # written with shared products (scaling by 2 is exact in floating point, so
+        # (2 a) b + (2 c) d rounds exactly as 2 (a b + c d)).
+        a0, a1, a2, a3 = 2 * e0, 2 * e1, 2 * e2, 2 * e3
+        w = a0 * e0 - 1
+        p12, p03, p13, p02, p23, p01 = a1 * e2, a0 * e3, a1 * e3, a0 * e2, a2 * e3, a0 * e1
+        m_head[:12] = (w + a1 * e1, p12 + p03, p13 - p02, p12 - p03, w + a2 * e2, p23 + p01,
+                       p13 + p02, p23 - p01, w + a3 * e3, r0, r1, r2)
+        _dot(aug, m, out=legs)
+        q0, q1, q2, q3, q4, q5 = _dot(legs * legs, ones3).tolist()
+        q0 -= s0_
+        q1 -= s1_
+        q2 -= s2_
+        q3 -= s3_
+        q4 -= s4_
+        q5 -= s5_
         ee = e0 * e0 + e1 * e1 + e2 * e2 + e3 * e3 - 1.0
-        # (ufunc reduce directly: ndarray.all() costs a Python-level wrapper per call)
-        if _all_true(np.less(np.abs(res), tol2c)) and abs(ee) < tol:
+        if (abs(q0) < t0_ and abs(q1) < t1_ and abs(q2) < t2_ and abs(q3) < t3_
+                and abs(q4) < t4_ and abs(q5) < t5_ and abs(ee) < tol):
             converged = True
             break
         if it >= max_iter:
             break
-        ev = (e0, e1, e2, e3)
-        jac[:6, :3] = legs
-        np.matmul(legs[:, None, :], (quad2 @ ev).reshape(6, 3, 4), out=jac_e)
-        jac[6, 3:] = ev
-        rhs[6] = ee
-        _, _, x, info = _dgesv(jac, rhs)
+        jac_n[:] = (e0, e1, e2, e3)
+        jac_l[...] = legs
+        _dot(quad2, jac_n, out=qe_flat)
+        np.matmul(legs_row, qe, out=jac_e)
+        # (the wrapper converts the right-hand side itself: a tuple is cheaper than an array)
+        _, _, x, info = _dgesv(jac, (q0, q1, q2, q3, q4, q5, ee))
         if info != 0:
             raise SingularPoseError('forward kinematics met a singular constraint Jacobian '
                                     f'at iteration {it}')
@@ -512,22 +549,30 @@ def forward_kinematics(geom, lengths, guess_position, guess_rotation, tol=1e-12,
     if not n > 1e-6:
         raise SingularPoseError('forward kinematics collapsed the Euler parameters to zero')
     e0, e1, e2, e3 = e0 / n, e1 / n, e2 / n, e3 / n
-    rot = np.array(_haug_rows(e0, e1, e2, e3, 0.0, 0.0, 0.0)[:9]).reshape(3, 3).T
+    # Haug's A of the normalised e, row-major (same products as in the loop).
+    a0, a1, a2, a3 = 2 * e0, 2 * e1, 2 * e2, 2 * e3
+    w = a0 * e0 - 1
+    p12, p03, p13, p02, p23, p01 = a1 * e2, a0 * e3, a1 * e3, a0 * e2, a2 * e3, a0 * e1
+    rot = np.array((w + a1 * e1, p12 - p03, p13 + p02, p12 + p03, w + a2 * e2, p23 - p01,
+                    p13 - p02, p23 + p01, w + a3 * e3)).reshape(3, 3)
     # Homogenised inverse Jacobian [u_i, (R p_i) x u_i / rho]: the moment (R p_i) x L_i is
     # 0.5 (L_i^T dA p_i / de) E^T with E = [-e, e0 I + e~] (Haug); the Haug extra term drops
     # out because E e = 0. The phi_q rows of the last Newton step are reused (that iterate is
     # within the previous residual, ~1e-7 m, of the solution: the same condition number to
     # many digits); with no step taken they are evaluated at the guess, which is the solution.
     if it == 0:
-        jac[:6, :3] = legs
-        np.matmul(legs[:, None, :], (quad2 @ (e0, e1, e2, e3)).reshape(6, 3, 4), out=jac_e)
+        jac_l[...] = legs
+        jac_n[:] = (e0, e1, e2, e3)
+        _dot(quad2, jac_n, out=qe_flat)
+        np.matmul(legs_row, qe, out=jac_e)
     # jn = diag(1 / C) [L | phi_q^e] blockdiag(I, 0.5 E^T / rho): one product.
-    tmat = cache.t_base.copy()
-    tmat[3:, 3:] = (cache.half_inv_rho * np.array(
-        (-e1, -e2, -e3, e0, e3, -e2, -e3, e0, e1, e2, -e1, e0))).reshape(4, 3)
-    jn = (jac[:6] * (1.0 / c)[:, None]) @ tmat
-    sv = _dgesdd(jn, compute_uv=0)[1]
-    cond = float(sv[0] / sv[5]) if sv[5] > 0 else math.inf
+    h = cache.half_inv_rho
+    tmat_e[...] = ((h * -e1, h * -e2, h * -e3), (h * e0, h * e3, h * -e2),
+                    (h * -e3, h * e0, h * e1), (h * e2, h * -e1, h * e0))
+    np.divide(1.0, c, out=inv_c)
+    jn = _dot(jac_6 * inv_c_col, tmat)
+    s0, _, _, _, _, s5 = _dgesdd(jn, 0)[1].tolist()      # compute_uv=0: values only
+    cond = s0 / s5 if s5 > 0 else math.inf
     if not cond <= max_condition:
         raise SingularPoseError(f'forward kinematics solution is near-singular: Jacobian '
                                 f'condition {cond:.3g} > {max_condition:.3g}')
@@ -538,7 +583,7 @@ def forward_kinematics(geom, lengths, guess_position, guess_rotation, tol=1e-12,
         except (KeyError, StopIteration, RuntimeError):   # another thread got there first
             pass
     _RECENT_QUATERNIONS[id(rot)] = (rot, (e0, e1, e2, e3))
-    return FKResult(np.array((r0, r1, r2)), rot, it, converged, cond)
+    return _new_tuple(FKResult, (np.array((r0, r1, r2)), rot, it, converged, cond))
 
 
 def forward_kinematics_batch(geom, lengths, guess_positions, guess_rotations, tol=1e-12,
