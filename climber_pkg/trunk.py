@@ -10,7 +10,6 @@ Used by the simulator (collision geometry), the simulated ultrasonic sensors (ra
 evaluation (centering error, clearance). Never by the planner: it knows only its encoders and
 its ultrasonic sensors.
 """
-import json
 import math
 
 import numpy as np
@@ -18,6 +17,7 @@ from scipy.interpolate import CubicSpline
 from scipy.spatial import cKDTree
 
 from paramotion.errors import UserError
+from paramotion.jsonfile import load_json_object
 
 #: Arc-length spacing of the dense resampling of the centreline, m.
 SAMPLE_STEP = 0.005
@@ -56,13 +56,7 @@ class Trunk:
     @classmethod
     def from_file(cls, path):
         """Load and validate a structure JSON file; UserError names the file and the problem."""
-        try:
-            with open(path, encoding='utf-8') as handle:
-                data = json.load(handle)
-        except OSError as exc:
-            raise UserError(f'trunk file {path}: cannot read ({exc.strerror})') from exc
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise UserError(f'trunk file {path}: not valid JSON ({exc})') from exc
+        data = load_json_object(path, 'trunk file')
         return cls.from_dict(data, source=f'trunk file {path}')
 
     @classmethod

@@ -8,7 +8,6 @@ only knows what its sensors tell it, Section V of Acar, Choset and Lee).
 Bad input raises :class:`paramotion.errors.UserError` with one line naming the file and the
 problem, so that a scenario never starts half-way on a broken world.
 """
-import json
 import math
 from dataclasses import dataclass, field
 
@@ -17,6 +16,7 @@ from shapely.geometry import Point, Polygon
 from shapely.validation import explain_validity
 
 from paramotion.errors import UserError
+from paramotion.jsonfile import load_json_object
 
 
 @dataclass
@@ -163,15 +163,7 @@ def world_from_dict(data, source='<memory>', radius=None):
 
 def load_world(path, radius=None):
     """Load and validate a world JSON file; raise UserError with one line if it is bad."""
-    try:
-        with open(path, encoding='utf-8') as f:
-            data = json.load(f)
-    except FileNotFoundError:
-        raise UserError(f'{path}: no such world file')
-    except (OSError, UnicodeDecodeError) as exc:
-        raise UserError(f'{path}: cannot read world file ({exc})')
-    except json.JSONDecodeError as exc:
-        raise UserError(f'{path}: not valid JSON (line {exc.lineno}: {exc.msg})')
+    data = load_json_object(path, 'world file')
     return world_from_dict(data, source=str(path), radius=radius)
 
 

@@ -17,7 +17,6 @@ orientation slice and the simplified Voronoi diagram is an arrangement of straig
 A scene file (JSON) can move the base, change the platform length, replace the boundary and
 add convex polygonal obstacles; the paper's scene is :func:`paper_model`. No ROS imports.
 """
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from paramotion.errors import UserError
+from paramotion.jsonfile import load_json_object
 from paramotion.voronoi.distance import compile_rho
 from paramotion.voronoi.predicates import (
     And,
@@ -288,15 +288,7 @@ def load_scene(path):
     ``domain`` {"x": [lo, hi], "y": [lo, hi], "phi_deg": [lo, hi]}.
     """
     path = Path(path)
-    try:
-        data = json.loads(path.read_text())
-    except OSError as exc:
-        raise UserError(f'scene file {path}: cannot read ({exc.strerror})') from None
-    except json.JSONDecodeError as exc:
-        raise UserError(f'scene file {path}: not valid JSON ({exc.msg} at line {exc.lineno})') \
-            from None
-    if not isinstance(data, dict):
-        raise UserError(f'scene file {path}: top level must be an object')
+    data = load_json_object(path, 'scene file')
     unknown = set(data) - {'base', 'platform_length', 'boundary', 'obstacles', 'domain',
                            'comment'}
     if unknown:

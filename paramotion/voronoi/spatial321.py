@@ -34,6 +34,7 @@ from scipy.sparse.csgraph import dijkstra
 from scipy.spatial import cKDTree
 
 from paramotion.errors import UserError
+from paramotion.jsonfile import load_json_object
 from paramotion.voronoi.distance import compile_rho
 from paramotion.voronoi.planar import NamedPredicate
 from paramotion.voronoi.planner import VoronoiPlanner
@@ -215,15 +216,7 @@ def load_scene(path):
     "9": ...} (platform frame, P7 at the origin), ``bounds`` {"position_min", "position_max",
     "angle_max_deg"}; missing keys take the demo values."""
     path = Path(path)
-    try:
-        data = json.loads(path.read_text())
-    except OSError as exc:
-        raise UserError(f'scene file {path}: cannot read ({exc.strerror})') from None
-    except json.JSONDecodeError as exc:
-        raise UserError(f'scene file {path}: not valid JSON ({exc.msg} at line {exc.lineno})') \
-            from None
-    if not isinstance(data, dict):
-        raise UserError(f'scene file {path}: top level must be an object')
+    data = load_json_object(path, 'scene file')
 
     def vec(v, what):
         try:
