@@ -19,20 +19,31 @@ def test_smoke_graph_across_processes(tmp_path):
 
 def test_bag_cli_play_and_record_across_processes(tmp_path):
     """``paramotion bag play`` in one process, ``paramotion bag record`` in another."""
+    import signal
     import subprocess
     import sys
+    import time
     from pathlib import Path
 
     from paramotion.bag.reader import read_messages
     sample = Path(__file__).resolve().parents[1] / 'bags' / 'smoke_sample'
     out = tmp_path / 'copy'
     cli = [sys.executable, '-m', 'paramotion.cli', 'bag']
-    rec = subprocess.Popen(cli + ['record', '-o', str(out), '/smoke/range', '--use-sim-time',
-                                  '--duration', '8'], stdout=subprocess.PIPE, text=True)
-    play = subprocess.run(cli + ['play', str(sample), '--topics', '/smoke/range', '--rate', '5',
-                                 '--wait-for-matched', '/smoke/range:1'],
-                          capture_output=True, text=True, timeout=60)
-    rec_out, _ = rec.communicate(timeout=60)
+    rec = subprocess.Popen(cli + ['record', '-o', str(out), '/smoke/range', '--use-sim-time'],
+                           stdout=subprocess.PIPE, text=True)
+    try:
+        play = subprocess.run(cli + ['play', str(sample), '--topics', '/smoke/range', '--rate',
+                                     '5', '--wait-for-matched', '/smoke/range:1'],
+                              capture_output=True, text=True, timeout=60)
+        # Stop the recorder the way a user does, with Ctrl-C once the player is done (a
+        # wall-clock --duration races the player's start-up on a loaded machine). The player
+        # only returns after its last reliable message is published; give delivery a moment.
+        time.sleep(1.0)
+        rec.send_signal(signal.SIGINT)
+        rec_out, _ = rec.communicate(timeout=60)
+    finally:
+        if rec.poll() is None:
+            rec.kill()
     assert play.returncode == 0 and rec.returncode == 0, play.stderr
     original = read_messages(sample, ['/smoke/range'])
     copied = read_messages(out, ['/smoke/range'])

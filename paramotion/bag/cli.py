@@ -5,10 +5,32 @@ import time
 import yaml
 
 from paramotion.bag.reader import bag_info
+from paramotion.errors import UserError
 
 
-def _spin_node(node_cls, params, until=None, duration=None):
-    """Run one node in this process until Ctrl-C, ``until()`` or ``duration`` wall seconds."""
+def _linger(node, seconds):
+    """Keep ``node``'s publishers alive ``seconds`` of wall time before they are destroyed.
+
+    A reader that has not yet taken the last samples loses them when the writer disappears
+    (the DDS reader drops a gone writer's unread samples), so a player that exits right after
+    its last publish can lose its tail on a loaded machine. Reliable publishers wait for their
+    acknowledgements; best-effort ones just get the time.
+    """
+    from rclpy.duration import Duration
+    end = time.monotonic() + seconds
+    for pub in node.publishers:
+        left = end - time.monotonic()
+        if left <= 0:
+            break
+        pub.wait_for_all_acked(Duration(nanoseconds=int(left * 1e9)))
+    time.sleep(max(0.0, end - time.monotonic()))
+
+
+def _spin_node(node_cls, params, until=None, duration=None, linger=0.0):
+    """Run one node in this process until Ctrl-C, ``until()`` or ``duration`` wall seconds.
+
+    When it stops by ``until()``, its publishers linger ``linger`` wall seconds first.
+    """
     import rclpy
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 
@@ -23,6 +45,7 @@ def _spin_node(node_cls, params, until=None, duration=None):
         end = None if duration is None else time.monotonic() + duration
         while context.ok():
             if until is not None and until(node):
+                _linger(node, linger)
                 break
             if end is not None and time.monotonic() >= end:
                 break
@@ -48,11 +71,13 @@ def _record(args):
 
 def _play(args):
     from paramotion.bag.player_node import BagPlayerNode
+    if not args.linger >= 0:
+        raise UserError(f'--linger: must be >= 0 wall seconds, got {args.linger}')
     params = {'bag': args.bag, 'topics': args.topics or [''], 'remap': args.remap or [''],
               'real_time_factor': args.rate, 'publish_period': args.clock_period,
               'wait_for_clock_subscribers': args.wait_for_subscribers,
               'wait_for_matched': args.wait_for_matched or ['']}
-    node = _spin_node(BagPlayerNode, params, until=lambda n: n.finished)
+    node = _spin_node(BagPlayerNode, params, until=lambda n: n.finished, linger=args.linger)
     print(f'played {node.published} messages from {args.bag}')
     return 0
 
@@ -162,6 +187,9 @@ def register(subparsers):
                       help='hold time until this many /clock subscribers are present')
     play.add_argument('--wait-for-matched', nargs='*', metavar='TOPIC:N',
                       help='hold time until these played topics have N matched subscribers')
+    play.add_argument('--linger', type=float, default=0.5,
+                      help='wall seconds to keep publishers up after the last message, so '
+                           'slow subscribers still take it (default 0.5)')
     play.set_defaults(func=_play)
 
     info = sub.add_parser('info', help='summarise a bag (recovers damaged ones)',
