@@ -146,6 +146,16 @@ def test_garbage_file_is_a_clear_error(tmp_path, capsys):
     assert 'no such bag' in capsys.readouterr().err
 
 
+def _readable_count(bag, topic):
+    """Messages of ``topic`` that the reader recovers from a bag still being written."""
+    if not any(bag.glob('*.mcap')):
+        return 0
+    try:
+        return sum(1 for _ in read_messages(bag, [topic]))
+    except Exception:
+        return 0
+
+
 def test_recorder_killed_with_sigkill_leaves_complete_chunks(tmp_path):
     """A recorder process SIGKILLed mid-run: everything up to its last flush reads back."""
     bag = tmp_path / 'killed'
@@ -170,7 +180,12 @@ def test_recorder_killed_with_sigkill_leaves_complete_chunks(tmp_path):
             pub.publish(String(data=f'msg {sent}'))
             sent += 1
             executor.spin_once(timeout_sec=0.01)
-        time.sleep(0.6)  # > 2 flush periods after the last message
+        # Wait until the flushed chunks hold what was sent (a loaded machine can lag the
+        # recorder by more than a few flush periods), then kill it mid-run.
+        end = time.monotonic() + 15.0
+        while time.monotonic() < end and _readable_count(bag, '/test/chatter') < sent:
+            time.sleep(0.2)
+        time.sleep(0.3)
         proc.kill()
         proc.wait(10)
     finally:
