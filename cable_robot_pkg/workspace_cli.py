@@ -126,6 +126,10 @@ def register(subparsers):
     robot_arg(p)
     p.add_argument('--corners', action='store_true',
                    help='search corner-to-corner pairings instead (zero rotation only)')
+    p.add_argument('--table2', action='store_true',
+                   help="identify the Neuron from the paper's results instead: Table II "
+                        'within 5 points on the in-frame grid and the TOW box 1.2 x 1.2 x 1.4 '
+                        'm (the search behind the shipped default; about 5-10 minutes)')
     p.add_argument('--pitch', type=float, default=0.1,
                    help='anchor spacing along the frame edges in m (default 0.1)')
     p.add_argument('--min-gap', type=float, default=0.02,
@@ -579,11 +583,65 @@ def _wrench_figure(desc, axes, free, closed, rot):
     return fig
 
 
+def _shipped_names(platform_half_size):
+    """Shipped descriptions by their cable set, to mark search rows that were shipped."""
+    from cable_robot_pkg.cdrpm.description import load_description, shipped_descriptions
+    shipped = {}
+    for path in shipped_descriptions():
+        other = load_description(path)
+        key = frozenset(zip(map(tuple, np.round(other.platform_points, 9)),
+                            map(tuple, np.round(other.frame_points, 9))))
+        shipped[key] = other.name
+    return shipped
+
+
+def _row_shipped_as(row, platform_half_size, shipped):
+    from cable_robot_pkg.cdrpm.arrangements import symmetric_cables
+    signs, anchors = symmetric_cables(row['anchor0'], row['anchor1'])
+    key = frozenset(zip(map(tuple, np.round(signs * platform_half_size, 9)),
+                        map(tuple, np.round(anchors, 9))))
+    return shipped.get(key)
+
+
+def _table2_arrangements(args, desc, out):
+    from cable_robot_pkg.cdrpm.arrangements import search_table2_arrangements
+    rows, stats = search_table2_arrangements(desc.frame_half_size, desc.platform_half_size,
+                                             desc.cable_radius, pitch=args.pitch,
+                                             min_home_gap=args.min_gap, progress=True)
+    shipped = _shipped_names(desc.platform_half_size)
+    for rank, row in enumerate(rows, 1):
+        row['rank'] = rank
+        row['shipped_as'] = _row_shipped_as(row, desc.platform_half_size, shipped)
+    print(f'{stats["distinct_up_to_symmetry"]:,} distinct arrangements with the required '
+          f'properties; {stats["home_gap_ok"]:,} wrench-closed and collision-free at home with '
+          f'cables >= {args.min_gap} m apart; {stats["screen_ok"]:,} near Table II on a 0.2 m '
+          f'grid; {stats["table2_ok"]:,} within 5 points of every row on the 0.05 m grid; '
+          f'{stats["tow_box_ok"]:,} also hold the paper\'s 1.2 x 1.2 x 1.4 m TOW box')
+    print(f'{"rank":>4} {"anchor of (+,+,+)":>20} {"anchor of (-,+,+)":>20} | '
+          f'{"Table II in frame (%)":>31} {"worst":>5} | {"TOW":>5} {"closed":>6}  shipped')
+    for r in rows[:args.top]:
+        a0 = ' '.join(f'{v:+.2f}' for v in r['anchor0'])
+        a1 = ' '.join(f'{v:+.2f}' for v in r['anchor1'])
+        t2 = ' '.join(f'{v:5.1f}' for v in r['table2_in_frame_percent'])
+        print(f'{r["rank"]:>4} {a0:>20} {a1:>20} | {t2:>31} '
+              f'{r["table2_max_difference_points"]:>5.1f} | {r["tow_percent"]:>4.1f}% '
+              f'{r["zero_rotation_both_percent"]:>5.1f}%  {r["shipped_as"] or ""}')
+    print('Table II rows 0/0/0, 30/0/0, 0/30/0, 0/0/30, 30/30/30 (paper 100, 97, 97, 85, 71); '
+          'worst: largest difference in points; TOW: +-30, +-30, +-10 deg on a 0.1 m grid; '
+          'closed: collision-free and wrench-closed share of the zero-rotation grid')
+    if out is not None:
+        _write_outputs(out, {'robot_dimensions_from': desc.source, 'criterion': 'table2',
+                             'pitch_m': args.pitch, 'min_home_gap_m': args.min_gap,
+                             'stats': stats, 'rows': rows})
+    return 0
+
+
 def _arrangements(args):
+    if args.corners and args.table2:
+        raise UserError('--corners and --table2: choose one search')
     if args.corners:
         return _corner_arrangements(args)
-    from cable_robot_pkg.cdrpm.arrangements import search_edge_arrangements, symmetric_cables
-    from cable_robot_pkg.cdrpm.description import load_description, shipped_descriptions
+    from cable_robot_pkg.cdrpm.arrangements import search_edge_arrangements
 
     desc = _robot(args)
     _check_step(desc, args.step)
@@ -592,22 +650,16 @@ def _arrangements(args):
     if not 1 <= args.top <= 1000:
         raise UserError(f'--top {args.top}: allowed [1, 1000]')
     out = _out_dir(args.out) if args.out else None
+    if args.table2:
+        return _table2_arrangements(args, desc, out)
     rows, stats = search_edge_arrangements(desc.frame_half_size, desc.platform_half_size,
                                            desc.cable_radius, pitch=args.pitch,
                                            min_home_gap=args.min_gap, step=args.step,
                                            progress=True)
-    shipped = {}
-    for path in shipped_descriptions():
-        other = load_description(path)
-        key = frozenset(zip(map(tuple, np.round(other.platform_points, 9)),
-                            map(tuple, np.round(other.frame_points, 9))))
-        shipped[key] = other.name
+    shipped = _shipped_names(desc.platform_half_size)
     for rank, row in enumerate(rows, 1):
-        signs, anchors = symmetric_cables(row['anchor0'], row['anchor1'])
-        key = frozenset(zip(map(tuple, np.round(signs * desc.platform_half_size, 9)),
-                            map(tuple, np.round(anchors, 9))))
         row['rank'] = rank
-        row['shipped_as'] = shipped.get(key)
+        row['shipped_as'] = _row_shipped_as(row, desc.platform_half_size, shipped)
     print(f'{stats["pairs"]:,} anchor pairs on the frame edges (pitch {args.pitch} m); '
           f'{stats["distinct_up_to_symmetry"]:,} distinct arrangements with the required '
           f'properties; {stats["home_closed_and_free"]:,} wrench-closed and collision-free at '

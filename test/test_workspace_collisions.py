@@ -168,6 +168,7 @@ NEURON_FLAGS = col.CABLE_CABLE | col.CABLE_BODY | col.OUTSIDE
 
 @pytest.mark.parametrize('name,expected', [
     ('kntu_neuron', NEURON_FLAGS),
+    ('kntu_neuron_home', NEURON_FLAGS),
     ('kntu_pinwheel', col.CABLE_CABLE | col.OUTSIDE),
     ('kntu_tetra_cross', col.CABLE_CABLE | col.CABLE_BODY | col.OUTSIDE),
     ('kntu_uncrossed', col.OUTSIDE)])

@@ -43,6 +43,8 @@ TABLE2_ROWS = (
     ((0, 0, 30), 85.0, 10.0),
     ((30, 30, 30), 71.0, None),
 )
+#: The paper's box inside the TOW for +-30, +-30, +-10 deg (IV-C), x, y, z in m.
+PAPER_TOW_BOX_M = (1.2, 1.2, 1.4)
 #: Paper's timing: 373 s of a 4.3 GHz CPU for 148,000 points (section IV).
 PAPER_POINTS = 148000
 PAPER_SECONDS = 373.0
@@ -371,6 +373,27 @@ def largest_box(mask, axes):
             'volume_m3': round(float(np.prod(size)), 9), 'cells': int(best[0])}
 
 
+def contains_box(mask, axes, size_m):
+    """True when an axis-aligned box of ``size_m`` (x, y, z in m) fits inside the cells of
+    ``mask`` (nx, ny, nz) that are all True, anywhere on the grid ``axes``.
+
+    A box of size s covers round(s / step) cells along each axis (the convention of
+    :func:`largest_box`); the test slides it over every placement with a 3-D summed-area table.
+    """
+    mask = np.asarray(mask, dtype=bool)
+    cells = []
+    for a, s in zip(axes, size_m):
+        step = float(a[1] - a[0]) if a.size > 1 else 1.0
+        cells.append(max(1, int(round(float(s) / step))))
+    if any(n < k for n, k in zip(mask.shape, cells)):
+        return False
+    c = np.pad(mask.astype(np.int64), ((1, 0), (1, 0), (1, 0))).cumsum(0).cumsum(1).cumsum(2)
+    a, b, d = cells
+    total = (c[a:, b:, d:] - c[:-a, b:, d:] - c[a:, :-b, d:] - c[a:, b:, :-d]
+             + c[:-a, :-b, d:] + c[:-a, b:, :-d] + c[a:, :-b, :-d] - c[:-a, :-b, :-d])
+    return bool(np.any(total == a * b * d))
+
+
 # --- workpiece study (IV-D) --------------------------------------------------------------------
 
 def workpiece_study(desc, workpiece, rotation_deg=(0, 0, 0), step=0.02, plane_y=0.0):
@@ -408,7 +431,8 @@ def workpiece_study(desc, workpiece, rotation_deg=(0, 0, 0), step=0.02, plane_y=
 
 
 __all__ = ['CABLE_BODY', 'CABLE_CABLE', 'CABLE_WORKPIECE', 'PLATFORM_WORKPIECE', 'OUTSIDE',
-           'COWResult', 'OrientationResult', 'TOWResult', 'TABLE2_ROWS', 'accessible_percentage',
-           'constant_orientation_workspace', 'grid_axes', 'grid_points', 'largest_box',
+           'COWResult', 'OrientationResult', 'PAPER_TOW_BOX_M', 'TOWResult', 'TABLE2_ROWS',
+           'accessible_percentage', 'constant_orientation_workspace', 'contains_box',
+           'grid_axes', 'grid_points', 'largest_box',
            'orientation_samples', 'orientation_workspace', 'step_for_resolution', 'table2',
            'total_orientation_workspace', 'workpiece_study']
