@@ -7,9 +7,10 @@ cross cabling" (I); collisions in +z under clockwise z-rotation mirror those in 
 counter-clockwise z-rotation (IV-A), i.e. the arrangement is invariant under a half turn about
 a horizontal axis and is chiral; and it is meant to be force feasible in its whole workspace.
 
-Two searches, both scored with the wrench-closure test of :mod:`.wrench_closure`:
+Three searches:
 
-1. **Corner pairings** (:func:`candidate_pairings`, :func:`score_pairings`): A_i restricted to
+1. **Corner pairings** (:func:`candidate_pairings`, :func:`score_pairings`, scored by wrench
+   closure): A_i restricted to
    the eight frame corners, an arrangement is a permutation of the corners; kept are the
    *admissible* ones (every cable leaves its platform corner outwards along some axis, else it
    enters the platform at every pose, eq. (8)) that are invariant under the half turn about x or
@@ -22,7 +23,13 @@ Two searches, both scored with the wrench-closure test of :mod:`.wrench_closure`
    edges of the frame (on a ``pitch`` spacing, corners included), and the arrangement is
    invariant under the three half turns about x, y and z (the rotation group D2 of a box, which
    contains the half turn of IV-A), so two cables - those of platform corners (+,+,+) and
-   (-,+,+) - generate all eight. This is the search behind the shipped default.
+   (-,+,+) - generate all eight. Scored with the wrench-closure test of
+   :mod:`.wrench_closure` around the home pose: the search behind ``kntu_neuron_home.yaml``.
+3. **Identification from the paper's results** (:func:`search_table2_arrangements`): the same
+   edge-anchored candidates that can hold the platform at home, kept when they reproduce the
+   paper's Table II (within 5 points on the in-frame grid) and hold its 1.2 x 1.2 x 1.4 m box in
+   the total orientation workspace; the best Table II fit is the shipped default,
+   ``kntu_neuron.yaml``.
 """
 import itertools
 
