@@ -35,6 +35,8 @@ def test_default_config_is_valid_and_consistent():
     ({'gough_stewart': {'envelope_position': 0.4}}, ['too short', '0.4']),
     ({'isolation': {'rate': 20.0}}, ['isolation.rate', 'cable_controller.rate']),
     ({'isolation': {'mode': 'magic'}}, ['isolation.mode', 'predictive']),
+    ({'isolation': {'peak_gain_max': 0.5}}, ['isolation.peak_gain_max', '>= 1']),
+    ({'isolation': {'vibration_band': [2.0, 0.3]}}, ['isolation.vibration_band', 'f_low']),
     ({'wind': {'spectrum': 'pink'}}, ['wind.spectrum', 'kaimal']),
     ({'towers': {'T1': [80.0, 0.0, 12.0]}}, ['towers.T1', 'outside the field']),
     ({'cables': {'tension_min': 9000.0, 'tension_ref': 9500.0}}, ['unreachable', 'tensions']),
@@ -52,6 +54,13 @@ def test_invalid_config_is_refused_with_a_clear_message(tmp_path, override, word
 def test_unknown_section_missing_file_and_bad_yaml(tmp_path):
     with pytest.raises(UserError, match='unknown section'):
         load_config(write(tmp_path, {'cabels': {}}))
+    # A misspelt or retired key is refused too, not silently ignored.
+    with pytest.raises(UserError, match=r'isolation\.latency_full'):
+        load_config(write(tmp_path, {'isolation': {'latency_full': 0.027}}))
+    # Tower names are the user's own.
+    towers = {'T1': [24.0, 24.0, 12.0], 'T2': [-24.0, 24.0, 12.0], 'T3': [-24.0, -24.0, 12.0],
+              'T4': [24.0, -24.0, 12.0]}
+    assert load_config(write(tmp_path, {'towers': towers}, 'towers.yaml'))
     with pytest.raises(UserError, match='no such file'):
         load_config(tmp_path / 'nope.yaml')
     with pytest.raises(UserError, match='not valid YAML'):

@@ -41,6 +41,10 @@ SPECTRA = ('kaimal', 'davenport', 'white')
 ISOLATION_MODES = ('predictive', 'naive')
 
 
+#: Sections whose keys are names chosen by the user (towers, anchors), not fixed fields.
+_FREE_FORM_SECTIONS = ('towers', 'ground_anchors')
+
+
 def _merge(base, override):
     """Recursive dict merge: ``override`` wins; lists are replaced whole."""
     out = copy.deepcopy(base)
@@ -173,6 +177,14 @@ def load_config(path=None, overrides=None):
         if unknown:
             raise UserError(f'{source}: unknown section(s) {", ".join(unknown)}; '
                             f'known: {", ".join(sorted(raw))}')
+        for section, value in user.items():
+            if section in _FREE_FORM_SECTIONS or not isinstance(value, dict) \
+                    or not isinstance(raw[section], dict):
+                continue
+            keys = [f'{section}.{k}' for k in sorted(set(value) - set(raw[section]))]
+            if keys:
+                raise UserError(f'{source}: unknown key(s) {", ".join(keys)}; known in '
+                                f'{section}: {", ".join(sorted(raw[section]))}')
         raw = _merge(raw, user)
     if overrides:
         raw = _merge(raw, overrides)
@@ -319,7 +331,13 @@ def validate(raw, source='config'):
         r.num(f'isolation.{key}', 0.0)
     r.num('isolation.dropout_timeout', 0.0, lo_open=True)
     r.num('isolation.lead', -0.05, 0.1)
-    r.num('isolation.latency_full', 0.0, 1.0, lo_open=True)
+    r.num('isolation.peak_gain_max', 1.0, 100.0)
+    band = raw['isolation'].get('vibration_band')
+    if not (isinstance(band, (list, tuple)) and len(band) == 2
+            and all(isinstance(f, (int, float)) and not isinstance(f, bool) for f in band)
+            and 0.0 < band[0] < band[1] <= 0.5 * raw['tracker']['rate']):
+        r.fail('isolation.vibration_band', f'= {band!r} must be [f_low, f_high] Hz with '
+               '0 < f_low < f_high <= half the tracker rate')
     if not isinstance(raw['isolation'].get('fuse'), bool):
         r.fail('isolation.fuse', f"= {raw['isolation'].get('fuse')!r} must be true or false")
     if 2 * raw['isolation']['stroke_margin'] >= leg_max - leg_min:
