@@ -24,13 +24,13 @@ NODES = [
     'climber_ultrasonic = climber_pkg.ultrasonic_node:main',
     'climber_planner = climber_pkg.planner_node:main',
     # cable_robot_pkg FAST (issue 5)
-    'fast_sim = cable_robot_pkg.fast_sim_node:main',
-    'fast_tracker = cable_robot_pkg.optical_tracker_node:main',
-    'fast_trajectory = cable_robot_pkg.feed_trajectory_node:main',
-    'fast_cable_controller = cable_robot_pkg.cable_pid_node:main',
-    'fast_isolation_controller = cable_robot_pkg.isolation_node:main',
+    'fast_sim = cable_robot_pkg.fast.sim_node:main',
+    'fast_tracker = cable_robot_pkg.fast.optical_tracker_node:main',
+    'fast_trajectory = cable_robot_pkg.fast.feed_trajectory_node:main',
+    'fast_cable_controller = cable_robot_pkg.fast.cable_pid_node:main',
+    'fast_isolation_controller = cable_robot_pkg.fast.isolation_node:main',
     # cable_robot_pkg workspace (issue 6)
-    'workspace_monitor = cable_robot_pkg.workspace_monitor_node:main',
+    'workspace_monitor = cable_robot_pkg.cdrpm.workspace_monitor_node:main',
     # Gough-Stewart simplified Voronoi planner (issue 7)
     'voronoi_planner = paramotion.voronoi.planner_node:main',
 ]

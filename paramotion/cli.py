@@ -16,8 +16,8 @@ SUBCOMMAND_MODULES = [
     'paramotion.bag.cli',                 # paramotion bag record|play|info
     'coverage_pkg.scenario',              # paramotion coverage
     'climber_pkg.scenario',               # paramotion climb
-    'cable_robot_pkg.fast_scenario',      # paramotion fast
-    'cable_robot_pkg.workspace_cli',      # paramotion workspace ...
+    'cable_robot_pkg.fast.scenario',      # paramotion fast
+    'cable_robot_pkg.cdrpm.cli',         # paramotion workspace ...
     'paramotion.voronoi.cli',             # paramotion voronoi ...
 ]
 

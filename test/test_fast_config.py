@@ -4,8 +4,8 @@ import math
 import pytest
 import yaml
 
-from cable_robot_pkg.fast.config import load_config
-from cable_robot_pkg.fast_scenario import register
+from cable_robot_pkg.fast.configuration import load_config
+from cable_robot_pkg.fast.scenario import register
 from paramotion.cli import main as cli_main
 from paramotion.errors import UserError
 

@@ -6,16 +6,16 @@ import numpy as np
 import pytest
 from conftest import BAGS
 
-from cable_robot_pkg.fast.config import load_config
+from cable_robot_pkg.fast.configuration import load_config
 from cable_robot_pkg.fast.isolation import IsolationController
-from cable_robot_pkg.fast_ros import (
+from cable_robot_pkg.fast.ros_messages import (
     HINGE_NAMES,
     LEG_NAMES,
     joint_vector,
     pose_from_msg,
     stamp_seconds,
 )
-from cable_robot_pkg.fast_scenario import bag_series, evaluate, evaluate_run, run_graph
+from cable_robot_pkg.fast.scenario import bag_series, evaluate, evaluate_run, run_graph
 from paramotion.bag.reader import deserialize, read_messages
 from paramotion.gough_stewart import forward_kinematics
 

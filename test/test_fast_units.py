@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from cable_robot_pkg.fast.cables import Cable, CableSystem, InfeasibleTensionError, gravity_wrench
-from cable_robot_pkg.fast.config import load_config
+from cable_robot_pkg.fast.configuration import load_config
 from cable_robot_pkg.fast.focal_surface import (
     FeedSupportChain,
     FocalSurface,

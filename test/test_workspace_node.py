@@ -11,7 +11,7 @@ from visualization_msgs.msg import MarkerArray
 
 from cable_robot_pkg.cdrpm.description import CONFIG_DIR, load_description
 from cable_robot_pkg.cdrpm.kinematics import inverse_kinematics
-from cable_robot_pkg.workspace_monitor_node import WorkspaceMonitorNode
+from cable_robot_pkg.cdrpm.workspace_monitor_node import WorkspaceMonitorNode
 from paramotion.errors import ParameterError
 from paramotion.graph import Graph
 from paramotion.qos import LATCHED_QOS, STATE_QOS

@@ -36,7 +36,7 @@ GEOM_TOL = 1e-9
 KNOWN_FIELDS = ('name', 'description', 'frame_half_size', 'frame_points', 'platform_points',
                 'platform_half_size', 'cable_radius', 'body_delta', 'workpiece')
 
-CONFIG_DIR = Path(__file__).resolve().parent.parent / 'config'
+CONFIG_DIR = Path(__file__).resolve().parent / 'config'
 
 
 def default_description_path():
@@ -45,7 +45,7 @@ def default_description_path():
 
 
 def shipped_descriptions():
-    """Paths of all robot descriptions shipped in ``cable_robot_pkg/config``."""
+    """Paths of all robot descriptions shipped in ``cable_robot_pkg/cdrpm/config``."""
     return sorted(CONFIG_DIR.glob('kntu_*.yaml'))
 
 

@@ -420,7 +420,7 @@ class IsolationController:
 
     @classmethod
     def from_config(cls, cfg, mode=None):
-        """Build from a validated :class:`~cable_robot_pkg.fast.config.FastConfig`."""
+        """Build from a validated :class:`~cable_robot_pkg.fast.configuration.FastConfig`."""
         iso = cfg.raw['isolation']
         tr = cfg.raw['tracker']
         return cls(cfg.geometry, cfg.chain.nominal_relative_pose(),

@@ -11,7 +11,12 @@ import math
 from geometry_msgs.msg import PoseStamped
 
 from cable_robot_pkg.fast.focal_surface import Track
-from cable_robot_pkg.fast_ros import TOPICS, check_config_param, config_from_param, pose_msg
+from cable_robot_pkg.fast.ros_messages import (
+    TOPICS,
+    check_config_param,
+    config_from_param,
+    pose_msg,
+)
 from paramotion.node import Param, ParamotionNode, run_node
 from paramotion.qos import STATE_QOS
 

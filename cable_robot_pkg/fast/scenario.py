@@ -44,11 +44,11 @@ def run_graph(duration, config='', wind=1.0, latency=0.02, isolation=True, mode=
     Returns a dict with the nodes' statistics and, when ``record_series``, time series of the
     ground truth and targets captured in-process (used when no bag is written).
     """
-    from cable_robot_pkg.cable_pid_node import CablePidNode
-    from cable_robot_pkg.fast_sim_node import FastSimNode
-    from cable_robot_pkg.feed_trajectory_node import FeedTrajectoryNode
-    from cable_robot_pkg.isolation_node import IsolationNode
-    from cable_robot_pkg.optical_tracker_node import OpticalTrackerNode
+    from cable_robot_pkg.fast.cable_pid_node import CablePidNode
+    from cable_robot_pkg.fast.feed_trajectory_node import FeedTrajectoryNode
+    from cable_robot_pkg.fast.isolation_node import IsolationNode
+    from cable_robot_pkg.fast.optical_tracker_node import OpticalTrackerNode
+    from cable_robot_pkg.fast.sim_node import FastSimNode
     from paramotion.graph import Graph
 
     tracker = dict(tracker or {})
@@ -121,7 +121,12 @@ def _rms(x):
 
 def bag_series(bag_dir):
     """Time series from a FAST bag: ground truth, targets, cable and leg states."""
-    from cable_robot_pkg.fast_ros import LEG_NAMES, joint_vector, pose_from_msg, stamp_seconds
+    from cable_robot_pkg.fast.ros_messages import (
+        LEG_NAMES,
+        joint_vector,
+        pose_from_msg,
+        stamp_seconds,
+    )
     from paramotion.bag.reader import deserialize, read_messages
     topics = {'/fast/ground_truth/trolley': 'trolley', '/fast/ground_truth/feed': 'feed',
               '/fast/ground_truth/upper_platform': 'upper', '/fast/feed_target': 'feed_target',
@@ -258,7 +263,7 @@ def _check_args(args):
     if hasattr(args, 'latency') and not (0.0 <= args.latency <= 0.2):
         raise UserError(f'--latency {args.latency}: must be in [0, 0.2] s')
     if args.config:
-        from cable_robot_pkg.fast.config import load_config
+        from cable_robot_pkg.fast.configuration import load_config
         load_config(args.config)      # raises UserError before anything runs
     if args.settle >= args.duration:
         raise UserError(f'--settle {args.settle}: must be shorter than --duration')

@@ -44,7 +44,7 @@ class WorkspaceMonitorNode(ParamotionNode):
 
     PARAMS = (
         Param('robot_description', '', 'Robot description YAML file (empty: the shipped KNTU '
-              'Neuron, cable_robot_pkg/config/kntu_neuron.yaml).', read_only=True),
+              'Neuron, cable_robot_pkg/cdrpm/config/kntu_neuron.yaml).', read_only=True),
         Param('frame_id', 'map', 'Frame of the fixed frame A for the markers and lengths.'),
         Param('clearance_warning', 0.02, 'Warn when two cables come closer than this surface '
               'gap (m).', min=0.0, max=1.0),

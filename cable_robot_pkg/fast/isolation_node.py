@@ -25,7 +25,7 @@ from geometry_msgs.msg import PoseStamped
 from sensor_msgs.msg import JointState
 
 from cable_robot_pkg.fast.isolation import IsolationController
-from cable_robot_pkg.fast_ros import (
+from cable_robot_pkg.fast.ros_messages import (
     HINGE_NAMES,
     LEG_NAMES,
     TOPICS,

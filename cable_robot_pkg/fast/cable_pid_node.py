@@ -25,7 +25,7 @@ from sensor_msgs.msg import JointState
 
 from cable_robot_pkg.fast.cables import InfeasibleTensionError
 from cable_robot_pkg.fast.pid import WinchController
-from cable_robot_pkg.fast_ros import (
+from cable_robot_pkg.fast.ros_messages import (
     HINGE_NAMES,
     TOPICS,
     check_config_param,

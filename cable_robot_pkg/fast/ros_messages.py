@@ -6,7 +6,7 @@ import numpy as np
 from geometry_msgs.msg import PoseStamped
 from sensor_msgs.msg import JointState
 
-from cable_robot_pkg.fast.config import load_config
+from cable_robot_pkg.fast.configuration import load_config
 from cable_robot_pkg.fast.rotations import matrix_from_quat, quat_from_matrix
 from paramotion.errors import UserError
 

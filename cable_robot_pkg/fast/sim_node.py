@@ -20,8 +20,7 @@ from geometry_msgs.msg import PoseStamped, WrenchStamped
 from sensor_msgs.msg import JointState
 
 from cable_robot_pkg.fast.plant import FeedSupportPlant
-from cable_robot_pkg.fast.wind import WindModel
-from cable_robot_pkg.fast_ros import (
+from cable_robot_pkg.fast.ros_messages import (
     HINGE_NAMES,
     LEG_NAMES,
     TOPICS,
@@ -32,6 +31,7 @@ from cable_robot_pkg.fast_ros import (
     pose_msg,
     stamp_seconds,
 )
+from cable_robot_pkg.fast.wind import WindModel
 from paramotion.node import Param, run_node
 from paramotion.qos import STATE_QOS
 from paramotion.sim import SimulationNode

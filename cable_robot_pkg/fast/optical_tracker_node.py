@@ -21,8 +21,8 @@ from collections import deque
 import numpy as np
 from geometry_msgs.msg import PoseStamped
 
+from cable_robot_pkg.fast.ros_messages import TOPICS, pose_from_msg, pose_msg, stamp_seconds
 from cable_robot_pkg.fast.rotations import matrix_from_rotvec
-from cable_robot_pkg.fast_ros import TOPICS, pose_from_msg, pose_msg, stamp_seconds
 from paramotion.node import Param, ParamotionNode, run_node
 from paramotion.qos import SENSOR_QOS, STATE_QOS
 

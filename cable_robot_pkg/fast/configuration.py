@@ -1,8 +1,8 @@
 """Load and validate the FAST feed-support config (field model, cables, platforms, wind).
 
-The config is a YAML file (default ``cable_robot_pkg/config/fast.yaml``); a user file is merged
-over the defaults key by key, so it only needs the keys it changes. :func:`load_config` checks
-every number's sign and range and then the system as a whole *before* a run starts:
+The config is a YAML file (default ``cable_robot_pkg/fast/config/fast.yaml``); a user file is
+merged over the defaults key by key, so it only needs the keys it changes. :func:`load_config`
+checks every number's sign and range and then the system as a whole *before* a run starts:
 
 - every track target must be reachable: trolley inside the field below the towers, hinge angles
   within range, and cable tensions within ``[tension_min, tension_max]`` balancing the weight
@@ -33,7 +33,7 @@ from cable_robot_pkg.fast.focal_surface import (
 from paramotion.errors import UserError
 from paramotion.gough_stewart import GoughStewartGeometry, inverse_kinematics
 
-DEFAULT_CONFIG = os.path.join(os.path.dirname(os.path.dirname(__file__)), 'config', 'fast.yaml')
+DEFAULT_CONFIG = os.path.join(os.path.dirname(__file__), 'config', 'fast.yaml')
 
 CABLE_KINDS = ('drive', 'suspension', 'pretension')
 TRACK_KINDS = ('circle', 'meridian', 'hold')

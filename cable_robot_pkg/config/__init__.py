@@ -1,1 +1,0 @@
-"""Robot descriptions and parameter files shipped with cable_robot_pkg (package data)."""

@@ -1,0 +1,1 @@
+"""FAST parameter file (fast.yaml) shipped with cable_robot_pkg.fast (package data)."""
