@@ -33,3 +33,28 @@ def test_algorithm_modules_do_not_import_rclpy():
                           text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert proc.stdout.strip().splitlines()[-1] == '[]'
+
+
+def test_each_robot_has_one_room():
+    """Issue 14: cable_robot_pkg holds one folder per robot and nothing else at its top level;
+    each robot folder keeps its nodes, scenario/CLI and config beside its algorithms."""
+    top = REPO / 'cable_robot_pkg'
+    assert sorted(p.name for p in top.glob('*.py')) == ['__init__.py']
+    for robot, cli in (('fast', 'scenario.py'), ('cdrpm', 'cli')):
+        room = top / robot
+        assert (room / cli).exists(), f'{robot}: {cli} missing'
+        assert any(room.glob('*_node.py')), f'{robot}: no node beside the algorithms'
+        assert any((room / 'config').glob('*.yaml')), f'{robot}: no config/'
+    assert (REPO / 'paramotion' / 'voronoi' / 'cli.py').exists()
+    assert not (REPO / 'paramotion' / 'voronoi_cli.py').exists()
+
+
+def test_every_console_script_resolves():
+    """Each node executable named in setup.py points at an importable module with main()."""
+    import importlib
+    import re
+    text = (REPO / 'setup.py').read_text()
+    entries = re.findall(r"'(\w+) = ([\w.]+):main'", text)
+    assert len(entries) >= 15
+    for name, module in entries:
+        assert callable(getattr(importlib.import_module(module), 'main', None)), name
