@@ -3,6 +3,8 @@
 One executable per node is registered as a console script; ``setup.cfg`` puts them under
 ``lib/paramotion`` so that ``ros2 run paramotion <node>`` finds them after ``colcon build``.
 """
+from glob import glob
+
 from setuptools import find_packages, setup
 
 PACKAGE = 'paramotion'
@@ -42,6 +44,11 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + PACKAGE]),
         ('share/' + PACKAGE, ['package.xml']),
+        # ros2 launch paramotion <graph>.launch.xml; the launch files find their default
+        # inputs as $(dirname)/../<pkg>/..., the same relative path as in the source tree.
+        ('share/' + PACKAGE + '/launch', sorted(glob('launch/*.launch.xml'))),
+        ('share/' + PACKAGE + '/coverage_pkg/worlds', sorted(glob('coverage_pkg/worlds/*.json'))),
+        ('share/' + PACKAGE + '/climber_pkg/trunks', sorted(glob('climber_pkg/trunks/*.json'))),
     ],
     package_data={'': ['*.yaml', '*.json']},
     include_package_data=True,
