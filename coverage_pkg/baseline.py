@@ -26,7 +26,6 @@ def robot_size_config(radius=0.25, overlap=0.2, **overrides):
         trace_tolerance=0.2 * radius,
         lap_tolerance=0.3 * radius,
         min_piece=0.4 * radius,
-        range_margin=0.0,
     )
     values.update(overrides)
     return PlannerConfig(**values)

@@ -57,7 +57,7 @@ class HierarchicalGraph:
 
     def __init__(self):
         self.nodes = {}
-        self.edges = {}            # (vast_id, narrow_id) -> list of cusp (x, y)
+        self.edges = {}            # (vast_id, narrow_id) -> {'sensed', 'predicted', 'shared'}
         self._next = 0
 
     def create_node(self, kind, anchor):
@@ -120,20 +120,55 @@ class HierarchicalGraph:
         return mapping
 
     def _merge_edges(self, old, new):
-        for (v, n), cusps in list(self.edges.items()):
+        for (v, n), edge in list(self.edges.items()):
             if old in (v, n):
                 del self.edges[(v, n)]
                 key = (new if v == old else v, new if n == old else n)
-                self.add_cusp(key[0], key[1], cusps)
+                self.link(key[0], key[1], edge['sensed'], edge['predicted'], edge['shared'])
 
-    def add_cusp(self, vast_id, narrow_id, cusps, merge_radius=0.5):
-        """Record cusp point(s) linking a vast node and a narrow node (one edge per cusp)."""
+    def link(self, vast_id, narrow_id, sensed=(), predicted=(), shared=None, merge_radius=0.5):
+        """Edge between a vast node and a narrow node whose cells touch, with the cusp points
+        between them: ``sensed`` by the ring (events), ``predicted`` on the GVD at D = delta
+        from memory (not yet sensed), and a point of the shared boundary (``shared``)."""
+        edge = self.edges.setdefault((vast_id, narrow_id),
+                                     {'sensed': [], 'predicted': [], 'shared': shared})
+        for key, pts in (('sensed', sensed), ('predicted', predicted)):
+            for c in pts:
+                if all(np.hypot(c[0] - e[0], c[1] - e[1]) > merge_radius
+                       for e in edge['sensed'] + edge['predicted']):
+                    edge[key].append((float(c[0]), float(c[1])))
+        if edge['shared'] is None and shared is not None:
+            edge['shared'] = (float(shared[0]), float(shared[1]))
+        return edge
+
+    def add_cusp(self, vast_id, narrow_id, cusps):
+        """Record sensed cusp point(s) linking a vast node and a narrow node."""
         if isinstance(cusps, tuple):
             cusps = [cusps]
-        lst = self.edges.setdefault((vast_id, narrow_id), [])
-        for c in cusps:
-            if all(np.hypot(c[0] - e[0], c[1] - e[1]) > merge_radius for e in lst):
-                lst.append((float(c[0]), float(c[1])))
+        self.link(vast_id, narrow_id, sensed=cusps)
+
+    def cusp_points(self, vast_id, narrow_id):
+        """All cusp points of an edge (sensed first)."""
+        e = self.edges.get((vast_id, narrow_id))
+        return [] if e is None else e['sensed'] + e['predicted']
+
+    def crossing(self, a, b, here):
+        """Where the route crosses from node ``a`` to node ``b``: the cusp point of their edge
+        nearest to ``here`` (or a shared boundary point when the edge has no cusp)."""
+        e = self.edges.get((a, b)) or self.edges.get((b, a))
+        if e is None:
+            return None
+        pts = e['sensed'] + e['predicted']
+        if not pts:
+            return e['shared']
+        return min(pts, key=lambda c: np.hypot(c[0] - here[0], c[1] - here[1]))
+
+    def resolve(self, node_id):
+        """The live node standing for ``node_id`` (following merges), or None."""
+        node = self.nodes.get(node_id)
+        while node is not None and not node.alive and node.merged_into >= 0:
+            node = self.nodes[node.merged_into]
+        return node.id if node is not None and node.alive else None
 
     def neighbours(self, node_id):
         out = set()
@@ -163,13 +198,14 @@ class HierarchicalGraph:
                     q.append(v)
         return []
 
-    def find_uncovered_node(self, current, distance=None):
+    def find_uncovered_node(self, current, distance=None, skip=()):
         """FindUncoveredNode of Algorithm 1: the uncovered node to visit next, or None.
 
-        Prefers the node fewest cusp crossings away from ``current``; ties (and nodes the graph
-        does not connect yet) are broken by ``distance(node) -> metres`` when given.
+        Prefers the node fewest graph edges away from ``current``; ties (and nodes the graph
+        does not connect yet) are broken by ``distance(node) -> metres`` when given. Nodes in
+        ``skip`` (given up) are not offered.
         """
-        cands = [n for n in self.alive() if not n.covered]
+        cands = [n for n in self.alive() if not n.covered and n.id not in skip]
         if not cands:
             return None
 
@@ -182,7 +218,7 @@ class HierarchicalGraph:
     def to_dict(self):
         """JSON-friendly snapshot: nodes (type vast/narrow) and edges with their cusp points."""
         return {
-            'nodes': [{'id': n.id, 'type': n.kind, 'covered': n.covered,
+            'nodes': [{'id': n.id, 'type': n.kind, 'kind': n.kind, 'covered': n.covered,
                        'anchor': list(n.anchor), 'centroid': list(n.centroid),
                        'area_m2': round(n.area, 3), 'alive': n.alive,
                        'merged_into': n.merged_into,
@@ -190,7 +226,10 @@ class HierarchicalGraph:
                        'reeb_edges': [list(e) for e in n.reeb_edges],
                        'meet_points': [list(p) for p in n.meet_points]}
                       for n in self.nodes.values()],
-            'edges': [{'vast': v, 'narrow': n, 'cusp_points': [list(c) for c in cusps]}
-                      for (v, n), cusps in self.edges.items()
+            'edges': [{'vast': v, 'narrow': n,
+                       'cusp_points': [list(c) for c in e['sensed'] + e['predicted']],
+                       'sensed_cusp_points': [list(c) for c in e['sensed']],
+                       'shared_boundary_point': list(e['shared']) if e['shared'] else None}
+                      for (v, n), e in self.edges.items()
                       if self.nodes[v].alive and self.nodes[n].alive],
         }

@@ -62,7 +62,7 @@ def run_kinematic(world, config=None, ring=None, dt=0.05, sweep_period=0.1, max_
             cmd = planner.update(t)
         if on_step is not None:
             on_step(t, planner, cmd)
-        if cmd.state in ('done', 'stuck'):
+        if cmd.state in ('done', 'stuck', 'incomplete'):
             break
         c, s = math.cos(yaw), math.sin(yaw)
         vx, vy = c * cmd.vx - s * cmd.vy, s * cmd.vx + c * cmd.vy

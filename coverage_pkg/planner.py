@@ -6,32 +6,36 @@ never reads the world file or the ground truth.
 
 How Algorithm 1 maps onto this code
 -----------------------------------
-* The sweeps are fused into an evidence grid (:mod:`coverage_pkg.mapping`, inverse sonar model
-  in :mod:`coverage_pkg.sonar`). Every ``replan_period`` the planner recomputes, on the sensed
-  part of the world, the distance function ``D`` (unknown space counts as obstacle, so the
-  decomposition only claims what has been sensed), ``FCS_r = {D > r}`` reachable from the
-  robot, the vast region ``VR = {D > delta}`` and the narrow region ``NR = FCS_r \\ VR``
-  (Section IV-A), the GVD (:mod:`coverage_pkg.gvd`), the Morse cells and critical points of
-  ``h = x`` in VR (:mod:`coverage_pkg.morse`) and the cusp points ``D = delta`` on the GVD.
-* The hierarchical decomposition graph (:mod:`coverage_pkg.hierarchical_graph`) keeps the vast
-  and narrow nodes across rebuilds, CreateNode for newly sensed cells, the cusp edges, and
-  FindUncoveredNode.
-* ``MorseDecompCoverage`` of a vast node = follow the lapping slices ``x = x0 + k 2 delta``
-  inside VR and the boundary of VR (the curve ``D = delta``), in the current Morse cell first.
-  ``TraceGVD`` of a narrow node = follow the GVD edges inside NR to their ends (cusp points,
-  dead ends at ``D = r``, meet points branch). Which slices, boundary pieces and GVD edges have
-  been followed is known from the robot's own trace (odometry), so the bookkeeping survives the
-  map growing under the robot: a node is covered when none of its pieces is left, and grows
-  new pieces (it is uncovered again) when new space is sensed next to it.
-* When the current node is covered, FindUncoveredNode picks the next one (fewest cusp crossings
-  away, then nearest), the robot moves there along a shortest path through sensed free space,
-  and coverage ends when no uncovered node is left: ``state == 'done'``.
+* **Sensing** (every sweep, :meth:`CoveragePlanner.on_sweep`): the ring gives ``D(x)`` (the
+  smallest valid range) and the closest obstacles (local minima of range over bearing). The
+  paper's sensor tests fire events that are stored with sim time and pose: ``cusp`` when ``D``
+  crosses ``delta`` while two closest obstacles are equidistant (Fig. 10 during boundary
+  following, Fig. 11 while tracing a GVD edge), ``meet`` where three are (GVD order 3, narrow
+  cell), ``critical`` while following the boundary at ``D = delta`` when the closest obstacle
+  lies along ``grad h = +-x`` (the normal is parallel to the slice gradient).
+* **Memory**: the sweeps are also fused into an evidence grid (:mod:`coverage_pkg.mapping`).
+  On it the planner keeps the cells of the hierarchical decomposition exactly as Section IV-A
+  defines them: ``VR = {x in FCS_r : D(x) > delta}``, vast cells = components of VR, narrow
+  cells = components of ``NR = FCS_r \\ VR``. The grid localises events (a critical point
+  sensed by the ring is placed at ``delta`` from the closest sensed obstacle point) and feeds the
+  live view; it does not decide.
+* **The hierarchical graph decides** (:mod:`coverage_pkg.hierarchical_graph`): CreateNode for
+  the start (kind from ``D(x)``) and for every newly sensed cell; one edge per vast/narrow pair
+  that touch, carrying the cusp points sensed (or, before they are sensed, predicted on the GVD
+  at ``D = delta``) between them. The current node is covered by ``MorseDecompCoverage``
+  (vast: laps on the slices ``x = x0 + k 2 delta`` and the boundary ``D = delta``, the current
+  Morse cell first; a Morse cell whose work is done is closed) or ``TraceGVD`` (narrow: its GVD
+  edges to their ends). When it is covered, ``FindUncoveredNode`` picks the uncovered node
+  fewest graph edges away and the robot is routed to it through the cusp points of the graph
+  path. Coverage is complete when the graph has no uncovered node: ``state == 'done'``.
+* **Recovery**: a robot that is commanded but does not move raises a ``stuck`` event; the goal
+  is marked blocked and the node is retried by another route (up to ``max_retries``); then the
+  node is given up, reported (``gave_up`` event, :attr:`CoveragePlanner.given_up`), and the run
+  ends ``incomplete``, never ``done``.
 
 Faults: NaN readings are ignored, +inf clears the cone up to max range, -inf adds nothing
 (REP 117). Without a sweep for more than ``sonar_timeout`` s of sim time the robot is stopped
-(``waiting_for_sonar``) and resumes when sweeps return. A robot that does not move although
-commanded is reported (``stuck`` events); after ``max_stuck`` consecutive ones it stops for good
-with ``state == 'stuck'`` instead of looping.
+(``waiting_for_sonar``) and resumes when sweeps return.
 """
 import math
 from dataclasses import dataclass
@@ -46,6 +50,8 @@ from coverage_pkg.mapping import T_FREE, EvidenceGrid
 from coverage_pkg.sonar import sweep_evidence
 from paramotion.errors import UserError
 
+TERMINAL = ('done', 'stuck', 'incomplete')
+
 
 @dataclass
 class PlannerConfig:
@@ -56,23 +62,24 @@ class PlannerConfig:
     detector: str = 'extended'         # 'extended' (this paper) or 'robot' (Section II baseline)
     resolution: float = 0.1            # evidence grid cell (m)
     clearance_margin: float = 0.1      # keep the centre at D > r + margin (m)
-    lap_spacing: float = 0.0           # 0: 2 * detector range
+    lap_spacing: float = 0.0           # 0: 2 * detector range (Section IV-A)
     max_speed: float = 1.0             # m/s
     spin_rate: float = 0.6             # rad/s, turns the sonar ring to fill the gaps between cones
     trace_tolerance: float = 0.15      # a piece counts as followed if the centre passed this close
-    replan_period: float = 1.5         # s of sim time between decomposition rebuilds
+    replan_period: float = 1.5         # s of sim time between refreshes of the memory
     sonar_timeout: float = 0.5         # s of sim time without a sweep before stopping
     stuck_time: float = 5.0            # s commanded but not moving -> a stuck event
-    max_stuck: int = 6                 # consecutive stuck events before giving up
+    max_stuck: int = 6                 # consecutive stuck events before stopping for good
+    max_retries: int = 3               # stuck events on one node before it is given up
     gvd_min_angle: float = math.radians(50.0)
     gvd_min_length: float = 0.5        # m, shorter isolated GVD pieces are sensing artefacts
     warmup: float = 1.0                # s spinning in place before the first plan
-    range_margin: float = 0.3          # m kept in hand: the decomposition uses delta - margin
-    node_switch_cost: float = 3.0      # m added to pieces outside the current node
     gvd_tolerance: float = 0.4         # m, a GVD edge passed this close counts as followed
-    lap_tolerance: float = 0.25        # m, same for slices and boundary (< range_margin)
+    lap_tolerance: float = 0.1         # m, same for slices and boundary
     min_piece: float = 0.3             # m, shorter leftover pieces are ignored
-
+    min_vast_area: float = 0.5         # m^2, smaller VR components are sensing slivers
+    event_tolerance: float = 0.15      # m, equal closest ranges (GVD order) within this
+    critical_angle: float = math.radians(12.0)  # bearing tolerance of the critical point test
 
     def detector_range(self):
         """Range of the detector used for coverage: delta, or r for the robot-size baseline."""
@@ -115,11 +122,7 @@ class CoveragePlanner:
         self.min_range = float(min_range)
         self.max_range = float(max_range)
         self.noise_std = float(noise_std)
-        # Detector range used by the decomposition: delta minus a margin that absorbs grid
-        # quantisation, sonar noise and path tracking error (Section IV-A uses delta itself).
-        self.det = config.detector_range()
-        if config.detector == 'extended':
-            self.det = max(self.det - config.range_margin, config.radius + config.resolution)
+        self.det = config.detector_range()          # delta itself (Section IV-A)
         self.spacing = config.lap_spacing or 2.0 * self.det
         self.grid = None
         self.graph = HierarchicalGraph()
@@ -129,21 +132,26 @@ class CoveragePlanner:
         self.t_first_sweep = None
         self.t_plan = -math.inf
         self.state = 'no_odometry'
-        self.current = None             # current node id
+        self.current = None             # current node id (Algorithm 1's n)
         self.goal = None                # (x, y) of the piece being approached
-        self.commit = None              # cell chosen at the last plan (kept while uncovered)
+        self.commit = None              # piece chosen at the last plan (kept while undone)
         self.goal_kind = None
         self.path = []                  # world waypoints
         self.path_i = 0
         self.x_ref = None
-        self.events = []                # (t, kind, x, y, detail): decisions and faults
+        self.events = []                # (t, kind, x, y, detail): sensed events and decisions
         self.decisions = []             # (t, node_id, node_kind, goal_x, goal_y) per plan
         self.stuck_count = 0
         self._hist = []                 # (t, x, y) once per second for stuck detection
         self.blocked = []               # goals given up after a stuck event
+        self.retries = {}               # node id -> stuck events while covering it
+        self.given_up = []              # node ids given up (reported, never 'done')
         self.last = {}                  # last decomposition, for markers and the result
         self.sweeps = 0
         self.min_distance = math.inf
+        self.sensed = {'cusp': [], 'critical': [], 'meet': []}   # (x, y, detail) in odom
+        self._closed_cells = []         # centroids of Morse cells reported closed
+        self._escape = False
 
     # ------------------------------------------------------------------ inputs
 
@@ -173,14 +181,79 @@ class CoveragePlanner:
             self.t_first_sweep = t
         self.grid.integrate(free_xy, occ_xy)
         self.sweeps += 1
-        finite = ranges[np.isfinite(ranges)]
-        prev = self.min_distance
-        self.min_distance = float(finite.min()) if len(finite) else self.max_range
-        # Sensor-level cusp test while tracing a narrow GVD edge (Fig. 11): logged as an event;
-        # the node bookkeeping uses the same criterion on the sensed grid (D crosses delta).
-        if (self.cfg.detector == 'extended' and self.goal_kind == 'gvd'
-                and gvdmod.narrow_cusp_crossed(prev, self.min_distance, self.det)):
-            self._event(t, 'cusp_sensed', 'min range rose above delta while tracing the GVD')
+        if self.cfg.detector == 'extended' and t - self.t_first_sweep >= self.cfg.warmup:
+            self._sense_events(t, ranges)
+        else:
+            self.min_distance = self._ring_distance(ranges)
+
+    # ------------------------------------------------------------------ sensor tests
+
+    def _ring_distance(self, ranges):
+        """D(x) from the ring: the smallest valid echo (max range if none)."""
+        with np.errstate(invalid='ignore'):
+            ok = np.isfinite(ranges) & (ranges >= self.min_range)
+        return float(ranges[ok].min()) if ok.any() else self.max_range
+
+    def _sense_events(self, t, ranges):
+        """The paper's sensor tests on one sweep: cusp, meet and critical points."""
+        prev, prev_pose = self.min_distance, getattr(self, '_prev_pose', self.pose)
+        dist = self._ring_distance(ranges)
+        self.min_distance, self._prev_pose = dist, self.pose
+        angles = self.mount + self.pose[2]
+        order = gvdmod.gvd_order(ranges, angles, self.cfg.event_tolerance)
+        self._sense_cusp(t, prev, dist, prev_pose, order)
+        if order >= 3 and dist <= self.det and self.goal_kind == 'gvd':
+            self._record(t, 'meet', self.pose[:2], f'GVD order {order} at D = {dist:.2f} m',
+                         spacing=1.0)
+        side = morse.critical_from_ring(ranges, self.mount, self.pose[2],
+                                        self.cfg.critical_angle)
+        if side and self.goal_kind == 'lap' and abs(dist - self.det) <= 2.0 * self.cfg.resolution:
+            self._sense_critical(t, side)
+
+    def _sense_cusp(self, t, prev, dist, prev_pose, order):
+        """Cusp point: D crosses delta where two closest obstacles are equidistant (on the GVD).
+
+        Fig. 11 (tracing a narrow GVD edge, D rises above delta) and Fig. 10 (following the
+        boundary at D = delta, a second closest obstacle appears) are the same crossing seen
+        from the two sides; the point is interpolated between the two sweeps.
+        """
+        if order < 2 or not math.isfinite(prev) or (prev <= self.det) == (dist <= self.det):
+            return
+        f = (self.det - prev) / (dist - prev) if dist != prev else 0.5
+        f = min(max(f, 0.0), 1.0)
+        xy = (prev_pose[0] + f * (self.pose[0] - prev_pose[0]),
+              prev_pose[1] + f * (self.pose[1] - prev_pose[1]))
+        way = 'rose above' if dist > self.det else 'fell below'
+        self._record(t, 'cusp', xy, f'D {way} delta on the GVD', spacing=0.5)
+
+    def _sense_critical(self, t, side):
+        """Critical point of h = x: the closest obstacle is along +-x (normal parallel to
+        grad h) while the robot follows the boundary at D = delta. Localised at delta from the
+        closest obstacle point held in memory (the ring's cones quantise bearing)."""
+        occ = self.grid.occupied()
+        x, y = self.pose[:2]
+        k = int(math.ceil((self.det + 0.5) / self.grid.res))
+        r0, c0 = self.grid.cells(np.array([[x, y]]))
+        rs = slice(max(r0[0] - k, 0), r0[0] + k + 1)
+        cs = slice(max(c0[0] - k, 0), c0[0] + k + 1)
+        rr, cc = np.nonzero(occ[rs, cs])
+        if len(rr) == 0:
+            return
+        pts = self.grid.center(rr + rs.start, cc + cs.start)
+        near = pts[int(np.argmin(np.hypot(pts[:, 0] - x, pts[:, 1] - y)))]
+        xy = (float(near[0] - side * self.det), float(near[1]))
+        kind = 'closes' if side > 0 else 'opens'
+        self._record(t, 'critical', xy, f'obstacle at {"+" if side > 0 else "-"}x: the slice '
+                     f'{kind} a Morse cell', spacing=1.0, tag=side)
+
+    def _record(self, t, kind, xy, detail, spacing, tag=None):
+        """Store a sensed event unless the same one was sensed within ``spacing`` m."""
+        for ox, oy, _, otag in self.sensed[kind]:
+            if otag == tag and math.hypot(ox - xy[0], oy - xy[1]) < spacing:
+                return
+        self.sensed[kind].append((float(xy[0]), float(xy[1]), detail, tag))
+        self.events.append((round(float(t), 3), kind, round(float(xy[0]), 3),
+                            round(float(xy[1]), 3), detail))
 
     # ------------------------------------------------------------------ main step
 
@@ -189,7 +262,7 @@ class CoveragePlanner:
         if self.pose is None:
             self.state = 'no_odometry'
             return Command(0.0, 0.0, 0.0, self.state)
-        if self.state in ('done', 'stuck'):
+        if self.state in TERMINAL:
             return Command(0.0, 0.0, 0.0, self.state)
         if self.t_sweep is None or t - self.t_sweep > self.cfg.sonar_timeout:
             if self.state != 'waiting_for_sonar':
@@ -203,35 +276,33 @@ class CoveragePlanner:
         if t - self.t_first_sweep < self.cfg.warmup:
             self.state = 'warmup'
             return Command(0.0, 0.0, self.cfg.spin_rate, self.state)
-        if self._check_stuck(t):
-            if self.state == 'stuck':
-                return Command(0.0, 0.0, 0.0, self.state)
+        if self._check_stuck(t) and self.state == 'stuck':
+            return Command(0.0, 0.0, 0.0, self.state)
         at_end = self.path_i >= len(self.path) - 1 and (
             not self.path or math.dist(self.pose[:2], self.path[-1]) < 0.1)
         if at_end or t - self.t_plan >= self.cfg.replan_period:
             self._plan(t)
-            if self.state == 'done':
+            if self.state in TERMINAL:
                 return Command(0.0, 0.0, 0.0, self.state)
         vx, vy = self._follow()
         yaw = self.pose[2]
         c, s = math.cos(yaw), math.sin(yaw)
         return Command(c * vx + s * vy, -s * vx + c * vy, self.cfg.spin_rate, self.state)
 
-    # ------------------------------------------------------------------ decomposition + choice
+    # ------------------------------------------------------------------ memory: the cells
 
     def decompose(self):
-        """Rebuild the hierarchical decomposition of the sensed world around the robot.
+        """The cells of Section IV-A on the sensed part of the world (the robot's memory).
 
-        Returns a dict of grid layers (crop of the evidence grid) used by :meth:`_plan` and by
-        the visualisation.
+        Returns a dict of grid layers (crop of the evidence grid): D, FCS_r reachable from the
+        robot, VR (``D > delta``, components smaller than ``min_vast_area`` are slivers and
+        count as narrow), NR, the GVD, the lapping slices and the boundary ``D = delta``.
         """
-        g = self.grid
-        cfg = self.cfg
+        g, cfg = self.grid, self.cfg
         rs, cs = g.known_bbox(margin_cells=4)
         res = g.res
         free = g.logodds[rs, cs] < T_FREE
-        obstacle = ~free
-        dist, fr, fc = gvdmod.distance_transform(obstacle, res)
+        dist, fr, fc = gvdmod.distance_transform(~free, res)
         trav = free & (dist > cfg.radius + cfg.clearance_margin)
         r0, c0 = rs.start, cs.start
 
@@ -245,44 +316,72 @@ class CoveragePlanner:
         def to_world(rows, cols):
             return g.center(np.asarray(rows) + r0, np.asarray(cols) + c0)
 
-        rc = to_cell(*self.pose[:2])
-        start = None
-        if rc is not None and trav[rc]:
-            start = rc
-        elif rc is not None and trav.any():
-            _, (ir, ic) = ndimage.distance_transform_edt(~trav, return_indices=True)
-            cand = (int(ir[rc]), int(ic[rc]))
-            if math.hypot(cand[0] - rc[0], cand[1] - rc[1]) * res < 1.0:
-                start = cand
+        start = self._start_cell(trav, to_cell(*self.pose[:2]), res)
         lab, _ = ndimage.label(trav)
         reach = (lab == lab[start]) if start is not None else np.zeros_like(trav)
         vast = reach & (dist > self.det)
+        vl, nv = ndimage.label(vast, structure=np.ones((3, 3)))
+        if nv:
+            size = ndimage.sum(vast, vl, np.arange(1, nv + 1)) * res ** 2
+            keep = np.r_[False, size >= cfg.min_vast_area]
+            vast = keep[vl]
         narrow = reach & ~vast
-        out = dict(rs=rs, cs=cs, free=free, dist=dist, trav=trav, reach=reach, vast=vast,
-                   narrow=narrow, start=start, to_cell=to_cell, to_world=to_world,
-                   trace=g.trace[rs, cs], occupied=g.logodds[rs, cs] > 0.6)
-        lap = morse.lap_columns(trav.shape[1], g.origin[0] + c0 * res, res, self.x_ref,
-                                self.spacing)
-        out['lap'] = vast & lap[None, :]
-        out['boundary'] = morse.boundary_cells(vast)
-        if cfg.detector == 'extended':
-            min_cells = max(3, int(round(cfg.gvd_min_length / res)))
-            gvd = gvdmod.prune_small(gvdmod.gvd_cells(free, fr, fc, cfg.gvd_min_angle) & reach,
-                                     min_cells)
-            out['gvd'] = gvd
-            # Narrow cells: the GVD outside the vast region (proof of Lemma 3), in pieces
-            # long enough not to be a sonar artefact.
-            out['narrow_gvd'] = gvdmod.prune_small(gvd & narrow, min_cells)
-            out['cusps'] = gvdmod.cusp_cells(gvd, dist, self.det)
+        d = dict(rs=rs, cs=cs, free=free, dist=dist, trav=trav, reach=reach, vast=vast,
+                 narrow=narrow, start=start, to_cell=to_cell, to_world=to_world,
+                 trace=g.trace[rs, cs], occupied=g.logodds[rs, cs] > 0.6)
+        self._lapping_layers(d, g.origin[0] + c0 * res, res)
+        self._gvd_layers(d, fr, fc, res)
+        d['reeb'], d['critical'], d['reeb_edges'] = morse.reeb_decomposition(
+            d['vast'] | d['boundary'])
+        return d
+
+    @staticmethod
+    def _start_cell(trav, rc, res):
+        """The robot's cell in FCS_r (or the nearest one within 1 m), None if lost."""
+        if rc is None or not trav.any():
+            return None
+        if trav[rc]:
+            return rc
+        _, (ir, ic) = ndimage.distance_transform_edt(~trav, return_indices=True)
+        cand = (int(ir[rc]), int(ic[rc]))
+        return cand if math.hypot(cand[0] - rc[0], cand[1] - rc[1]) * res < 1.0 else None
+
+    def _lapping_layers(self, d, x0, res):
+        """Lapping slices x = x_ref + k * spacing and the boundary followed at D = delta.
+
+        The boundary is the curve ``D = delta`` itself: the narrow cells touching VR (their D is
+        within one cell of delta, at most delta), so a wall at delta from it is seen; the
+        robot-size baseline, which has no narrow region, follows the edge of FCS_r.
+        """
+        vast = d['vast']
+        if self.cfg.detector == 'extended':
+            ring = ndimage.binary_dilation(vast, structure=np.ones((3, 3)))
+            boundary = d['narrow'] & ring
         else:
-            out['gvd'] = np.zeros_like(free)
-            out['narrow_gvd'] = np.zeros_like(free)
-            out['cusps'] = []
-        out['reeb'], out['critical'], out['reeb_edges'] = morse.reeb_decomposition(vast)
-        return out
+            boundary = morse.boundary_cells(vast)
+        lap = morse.lap_columns(vast.shape[1], x0, res, self.x_ref, self.spacing)
+        d['boundary'] = boundary
+        d['lap'] = (vast | boundary) & lap[None, :]
+
+    def _gvd_layers(self, d, fr, fc, res):
+        """GVD of the sensed free space, its part in NR (followed by TraceGVD), cusp cells."""
+        cfg = self.cfg
+        if cfg.detector != 'extended':
+            d['gvd'] = d['narrow_gvd'] = np.zeros_like(d['free'])
+            d['cusps'] = []
+            return
+        min_cells = max(3, int(round(cfg.gvd_min_length / res)))
+        gvd = gvdmod.prune_small(gvdmod.gvd_cells(d['free'], fr, fc, cfg.gvd_min_angle)
+                                 & d['reach'], min_cells)
+        d['gvd'] = gvd
+        d['narrow_gvd'] = gvdmod.prune_small(gvd & d['narrow'], min_cells)
+        d['cusps'] = gvdmod.cusp_cells(gvd & d['reach'], np.where(d['vast'], np.inf,
+                                                                  d['dist']), self.det)
+
+    # ------------------------------------------------------------------ Algorithm 1
 
     def _plan(self, t):
-        from skimage.graph import MCP_Geometric
+        """One round of Algorithm 1: refresh the graph, cover n, or move on to the next n."""
         self.t_plan = t
         d = self.decompose()
         self.last = d
@@ -293,167 +392,286 @@ class CoveragePlanner:
             self.state = 'escaping'
             return
         self._escape = False
-        trace = d['trace']
-        blocked = np.zeros_like(trace)
-        for bx, by in self.blocked:
-            cell = d['to_cell'](bx, by)
-            if cell is not None:
-                k = int(math.ceil(0.4 / self.grid.res))
-                blocked[max(cell[0] - k, 0):cell[0] + k + 1,
-                        max(cell[1] - k, 0):cell[1] + k + 1] = True
-        # Distance of every cell to the robot's trace: a slice or boundary piece counts as
-        # followed within lap_tolerance (kept below range_margin, so the detector disks still
-        # meet), a GVD edge within gvd_tolerance (the discrete GVD of a map still being refined
-        # shifts by a cell or two, and a narrow cell is seen whole from anywhere near its GVD,
-        # Lemma 1). Pieces shorter than min_piece are sonar artefacts, not cells to visit.
-        dtrace = ndimage.distance_transform_edt(~trace) * self.grid.res + self.cfg.trace_tolerance
-        min_cells = max(1, int(round(self.cfg.min_piece / self.grid.res)))
-        undone_lap = gvdmod.prune_small(
-            (d['lap'] | d['boundary']) & (dtrace > self.cfg.lap_tolerance) & ~blocked, min_cells)
-        undone_gvd = gvdmod.prune_small(
-            d['narrow_gvd'] & (dtrace > self.cfg.gvd_tolerance) & ~blocked, min_cells)
-        # --- hierarchical graph bookkeeping
+        vmap, nmap, node_of = self._update_graph(t, d)
+        undone = self._remaining_work(d)
+        work = self._work_per_node(d, undone, node_of)
+        self._mark_covered(t, d, work, vmap, nmap)
+        self._close_morse_cells(t, d, undone, node_of)
+        cost = self._travel_costs(d)
+        cand = undone & np.isfinite(cost[0])
+        n = self._current_node(t, d, cand, node_of, cost)
+        if n is None:
+            self._finish(t)
+            return
+        self._cover_node(t, d, n, cand, undone, node_of, cost)
+
+    def _update_graph(self, t, d):
+        """CreateNode for newly sensed cells; edges between touching vast and narrow cells with
+        their cusp points; Reeb graph (critical points) of each vast node; meet points."""
         vl, _ = ndimage.label(d['vast'], structure=np.ones((3, 3)))
-        nl, _ = ndimage.label(d['narrow_gvd'], structure=np.ones((3, 3)))
-        seeds = [self.pose[:2]] + [tuple(d['to_world']([r], [c])[0]) for r, c in d['cusps']]
-        start_kind = 'vast' if d['dist'][d['start']] > self.det else 'narrow'
-        vmap = self.graph.update('vast', vl, d['to_cell'], d['to_world'], self.grid.res, seeds)
-        nmap = self.graph.update('narrow', nl, d['to_cell'], d['to_world'], self.grid.res,
-                                 seeds)
-        for r, c in d['cusps']:
-            ri, ci = int(round(r)), int(round(c))
-            win = (slice(max(ri - 3, 0), ri + 4), slice(max(ci - 3, 0), ci + 4))
-            vs = [v for v in np.unique(vl[win]) if v]
-            ns = [n for n in np.unique(nl[win]) if n]
-            xy = tuple(d['to_world']([r], [c])[0])
-            for v in vs:
-                for n in ns:
-                    self.graph.add_cusp(vmap[v], nmap[n], xy)
-        d['meet'] = gvdmod.meet_points(d['narrow_gvd']) if d['narrow_gvd'].any() else []
-        for nid in nmap.values():
-            self.graph.nodes[nid].meet_points = []
-        for r, c in d['meet']:
-            lab = nl[int(round(r)), int(round(c))]
-            if lab in nmap:
-                self.graph.nodes[nmap[lab]].meet_points.append(
-                    tuple(float(v) for v in d['to_world']([r], [c])[0]))
-        node_of = np.zeros(vl.shape, dtype=np.int64) - 1
+        nl, _ = ndimage.label(d['narrow'], structure=np.ones((3, 3)))
+        res = self.grid.res
+        cusps = [tuple(c[:2]) for c in self.sensed['cusp']]
+        seeds = [self.pose[:2]] + cusps
+        before = set(self.graph.nodes)
+        vmap = self.graph.update('vast', vl, d['to_cell'], d['to_world'], res, seeds)
+        nmap = self.graph.update('narrow', nl, d['to_cell'], d['to_world'], res, seeds)
+        for nid in sorted(set(self.graph.nodes) - before):
+            node = self.graph.nodes[nid]
+            self._event(t, 'node_created', f'{node.kind} node {nid} (CreateNode)')
+        node_of = np.full(vl.shape, -1, dtype=np.int64)
         for lab, nid in vmap.items():
             node_of[vl == lab] = nid
         for lab, nid in nmap.items():
             node_of[nl == lab] = nid
-        undone = np.where(d['vast'], undone_lap, undone_gvd)
-        counts = {}
-        if undone.any():
-            ids, cnt = np.unique(node_of[undone], return_counts=True)
-            counts = {int(i): int(n) for i, n in zip(ids, cnt) if i >= 0}
+        self._link_cells(d, vl, nl, vmap, nmap)
+        self._attach_critical_points(d, vl, vmap)
+        self._attach_meet_points(nl, nmap, d)
+        return vmap, nmap, node_of
+
+    def _link_cells(self, d, vl, nl, vmap, nmap):
+        """One graph edge per touching vast/narrow pair, with its cusp points: the sensed ones
+        near the shared boundary, else the GVD points at D = delta predicted from memory."""
+        self.graph.edges = {}
+        grown = ndimage.grey_dilation(vl, footprint=np.ones((3, 3)))
+        touch = (grown > 0) & (nl > 0)
+        pairs = set(zip(grown[touch].tolist(), nl[touch].tolist()))
+        sensed = [c for c in self.sensed['cusp']]
+        for v, n in sorted(pairs):
+            a, b = vmap.get(v), nmap.get(n)
+            if a is None or b is None:
+                continue
+            shared = touch & (grown == v) & (nl == n)
+            rr, cc = np.nonzero(shared)
+            pts = d['to_world'](rr, cc)
+            own = [c[:2] for c in sensed
+                   if np.min(np.hypot(pts[:, 0] - c[0], pts[:, 1] - c[1])) < 0.5]
+            predicted = []
+            for r, c in d['cusps']:
+                ri, ci = int(round(r)), int(round(c))
+                win = (slice(max(ri - 2, 0), ri + 3), slice(max(ci - 2, 0), ci + 3))
+                if (vl[win] == v).any() and (nl[win] == n).any():
+                    predicted.append(tuple(d['to_world']([r], [c])[0]))
+            self.graph.link(a, b, own, predicted, tuple(pts[len(pts) // 2]))
+
+    def _attach_critical_points(self, d, vl, vmap):
+        """The sensed critical points of each vast node and its Morse cells (Reeb graph edges:
+        the cells between critical points, sliced from memory)."""
+        crit = self.sensed['critical']
+        for lab, nid in vmap.items():
+            node = self.graph.nodes[nid]
+            mask = ndimage.binary_dilation(vl == lab, iterations=3)
+            mine = []
+            for x, y, detail, side in crit:
+                cell = d['to_cell'](x, y)
+                if cell is not None and mask[cell]:
+                    mine.append((x, y, 'closes' if side > 0 else 'opens'))
+            node.reeb_points = mine
+            cells = np.unique(d['reeb'][vl == lab])
+            node.reeb_edges = [(int(a), int(b)) for a, b, c in d['reeb_edges'] if c in cells]
+
+    def _attach_meet_points(self, nl, nmap, d):
+        for nid in nmap.values():
+            self.graph.nodes[nid].meet_points = []
+        for x, y, _, _ in self.sensed['meet']:
+            cell = d['to_cell'](x, y)
+            if cell is not None and nl[cell] in nmap:
+                self.graph.nodes[nmap[nl[cell]]].meet_points.append((x, y))
+
+    def _remaining_work(self, d):
+        """Pieces not yet followed: laps and boundary (vast), GVD edges (narrow)."""
+        cfg, res = self.cfg, self.grid.res
+        dtrace = ndimage.distance_transform_edt(~d['trace']) * res
+        blocked = np.zeros_like(d['reach'])
+        for bx, by in self.blocked:
+            c = d['to_cell'](bx, by)
+            if c is not None:
+                k = int(math.ceil(0.5 / res))
+                blocked[max(c[0] - k, 0):c[0] + k + 1, max(c[1] - k, 0):c[1] + k + 1] = True
+        min_cells = max(2, int(round(cfg.min_piece / res)))
+        lap = (d['lap'] | d['boundary']) & (dtrace > cfg.lap_tolerance) & ~blocked
+        gvd = d['narrow_gvd'] & (dtrace > cfg.gvd_tolerance) & ~blocked
+        d['undone_lap'] = gvdmod.prune_small(lap, min_cells)
+        d['undone_gvd'] = gvdmod.prune_small(gvd, min_cells)
+        d['blocked'] = blocked
+        return d['undone_lap'] | d['undone_gvd']
+
+    def _work_per_node(self, d, undone, node_of):
+        """Remaining work per node. Boundary cells lie in NR but are the vast node's work
+        (MorseDecompCoverage follows the boundary): they count for the nearest vast cell."""
+        owner = node_of.copy()
+        if d['vast'].any():
+            _, (ir, ic) = ndimage.distance_transform_edt(~d['vast'], return_indices=True)
+            lapwork = d['lap'] | d['boundary']
+            owner = np.where(lapwork, node_of[ir, ic], node_of)
+        d['owner'] = owner
+        ids, cnt = np.unique(owner[undone], return_counts=True)
+        return {int(i): int(n) for i, n in zip(ids, cnt) if i >= 0}
+
+    def _mark_covered(self, t, d, work, vmap, nmap):
+        """A node is covered when none of its pieces is left; newly sensed space next to it
+        can give it work again (it is uncovered again)."""
+        blocked_work = {}
+        if d['blocked'].any():
+            lapwork = (d['lap'] | d['boundary'] | d['narrow_gvd']) & d['blocked']
+            ids = np.unique(d['owner'][lapwork])
+            blocked_work = {int(i) for i in ids if i >= 0}
         for nid in list(vmap.values()) + list(nmap.values()):
             node = self.graph.nodes[nid]
             was = node.covered
-            node.covered = counts.get(nid, 0) == 0
+            node.covered = work.get(nid, 0) == 0
+            if node.covered and nid in blocked_work and nid not in self.given_up:
+                node.covered = False                # only blocked work left: not covered
+                self.given_up.append(nid)
+                self._event(t, 'gave_up', f'{node.kind} node {nid}: its remaining pieces '
+                                          'are blocked')
             if node.covered and not was:
                 self._event(t, 'node_covered', f'{node.kind} node {nid} covered')
-        # Reeb graph of each vast node: its critical points and the cells joining them. A
-        # split/merge point lies in the obstacle between two slice intervals, so it is
-        # assigned to a vast cell through the Morse cells it opens or closes.
+
+    def _close_morse_cells(self, t, d, undone, node_of):
+        """Report each Morse cell (between two critical points) of a vast node whose laps and
+        boundary are all followed: ``cell_closed``."""
         reeb = d['reeb']
-        n_reeb = int(reeb.max())
-        cell_comp = np.zeros(n_reeb + 1, dtype=np.int64)
-        if n_reeb:
-            cell_comp[1:] = ndimage.maximum(vl, reeb, np.arange(1, n_reeb + 1)).astype(np.int64)
-        comp_of_point = []
-        for p in d['critical']:
-            cells = p.cells_before + p.cells_after
-            comp_of_point.append(int(cell_comp[cells[0]]) if cells else 0)
-        for lab, nid in vmap.items():
-            idx = [i for i, c in enumerate(comp_of_point) if c == lab]
-            local = {i: k for k, i in enumerate(idx)}
-            node = self.graph.nodes[nid]
-            node.reeb_points = [
-                tuple(float(v) for v in d['to_world']([d['critical'][i].row],
-                                                      [d['critical'][i].col])[0])
-                + (d['critical'][i].kind,) for i in idx]
-            node.reeb_edges = [(local[a], local[b]) for a, b, _ in d['reeb_edges']
-                               if a in local and b in local]
-        cur = self.graph.nodes.get(self.current)
-        while cur is not None and not cur.alive and cur.merged_into >= 0:
-            cur = self.graph.nodes[cur.merged_into]
-        self.current = cur.id if cur is not None and cur.alive else None
-        first = self.current is None and not self.decisions
-        # --- geodesic distances from the robot
-        # Path cost grows near obstacles, so that transits through narrow space run along the
-        # GVD (and follow it, as TraceGVD would) instead of hugging a wall.
-        cost = np.where(d['reach'], 1.0 + 2.0 * np.clip(1.0 - d['dist'] / self.det, 0.0, 1.0),
-                        np.inf)
+        n = int(reeb.max())
+        if n == 0:
+            return
+        idx = np.arange(1, n + 1)
+        left = ndimage.sum(undone, reeb, idx)
+        size = ndimage.sum(reeb > 0, reeb, idx) * self.grid.res ** 2
+        cen = ndimage.center_of_mass(reeb > 0, reeb, idx)
+        for k in range(n):
+            if left[k] or size[k] < self.cfg.min_vast_area:
+                continue
+            xy = tuple(d['to_world']([cen[k][0]], [cen[k][1]])[0])
+            if any(math.hypot(xy[0] - a, xy[1] - b) < self.spacing for a, b in
+                   self._closed_cells):
+                continue
+            self._closed_cells.append(xy)
+            self.events.append((round(float(t), 3), 'cell_closed', round(float(xy[0]), 3),
+                                round(float(xy[1]), 3), f'Morse cell {k + 1} covered'))
+
+    def _travel_costs(self, d):
+        """Geodesic cost from the robot through sensed FCS_r (higher near obstacles, so that
+        transits through narrow space run along the GVD)."""
+        from skimage.graph import MCP_Geometric
+        cost = np.where(d['reach'],
+                        1.0 + 2.0 * np.clip(1.0 - d['dist'] / self.det, 0.0, 1.0), np.inf)
         mcp = MCP_Geometric(cost)
         cum, _ = mcp.find_costs([d['start']])
-        cum = cum * self.grid.res
-        cand = undone & np.isfinite(cum)
-        if not cand.any():
-            self.state = 'done'
-            self.path, self.path_i = [], 0
-            self._event(t, 'done', 'no uncovered node left: coverage complete')
-            return
-        # --- choose the node (Algorithm 1) and the piece inside it
+        return cum * self.grid.res, mcp, cost
+
+    def _current_node(self, t, d, cand, node_of, cost):
+        """Algorithm 1's n: CreateNode at the start, the current node while it has work left,
+        then FindUncoveredNode (fewest graph edges away, then nearest)."""
+        cum = cost[0]
+        owner = d['owner']
+        cur = self.graph.resolve(self.current)
+        self.current = cur
+        if cur is None and not self.decisions:
+            kind = 'vast' if d['vast'][d['start']] else 'narrow'
+            here = int(node_of[d['start']])
+            self.current = here if here >= 0 else None
+            self._event(t, 'start', f'CreateNode: D(x) says {kind}, node {self.current}')
+        if self.current is not None and (cand & (owner == self.current)).any():
+            return self.graph.nodes[self.current]
+
         def reach_dist(node):
-            m = cand & (node_of == node.id)
+            m = cand & (owner == node.id)
             return float(cum[m].min()) if m.any() else math.inf
-        if first:
-            # CreateNode(x, D(x)): the first node is of the kind D(x) says, the nearest one.
-            kinds = [n for n in self.graph.alive(start_kind) if not n.covered]
-            if kinds:
-                self.current = min(kinds, key=reach_dist).id
-        if self.current is None or counts.get(self.current, 0) == 0 or not (
-                cand & (node_of == self.current)).any():
-            nxt = self.graph.find_uncovered_node(self.current, reach_dist)
-            while nxt is not None and not math.isfinite(reach_dist(nxt)):
-                nxt.covered = True        # nothing reachable is left in it
-                nxt = self.graph.find_uncovered_node(self.current, reach_dist)
-            if nxt is None:
-                self.state = 'done'
-                self.path, self.path_i = [], 0
-                self._event(t, 'done', 'no uncovered node left: coverage complete')
-                return
-            if self.current is not None and nxt.id != self.current:
-                hops = self.graph.graph_path(self.current, nxt.id)
-                self._event(t, 'next_node', f'{nxt.kind} node {nxt.id} via {hops}')
-            self.current = nxt.id
-        # Cover the current node first: pieces of other nodes cost an extra
-        # ``node_switch_cost`` (a soft form of "cover n, then FindUncoveredNode", which avoids
-        # crossing a whole vast cell to finish it before visiting an adjacent corner), and
-        # inside a vast node the current Morse cell comes first.
-        score = cum + np.where(node_of == self.current, 0.0, self.cfg.node_switch_cost)
-        node = self.graph.nodes[self.current]
-        if node.kind == 'vast' and d['start'] is not None:
+        skip = set(self.given_up)
+        nxt = self.graph.find_uncovered_node(self.current, reach_dist, skip)
+        while nxt is not None and not math.isfinite(reach_dist(nxt)):
+            skip.add(nxt.id)           # work only behind blocked goals: retried via the graph
+            nxt = self.graph.find_uncovered_node(self.current, reach_dist, skip)
+        if nxt is None:
+            return None
+        if nxt.id != self.current:
+            hops = self.graph.graph_path(self.current, nxt.id) if self.current is not None \
+                else [nxt.id]
+            self._event(t, 'next_node', f'FindUncoveredNode: {nxt.kind} node {nxt.id} via '
+                                        f'{hops}')
+            self._route = hops
+        self.current = nxt.id
+        return nxt
+
+    def _finish(self, t):
+        """No uncovered node reachable: done, unless a node was given up (then incomplete)."""
+        self.path, self.path_i = [], 0
+        left = [n.id for n in self.graph.alive() if not n.covered]
+        if self.given_up or left:
+            self.state = 'incomplete'
+            self._event(t, 'incomplete', f'nodes given up {sorted(set(self.given_up))}, '
+                                         f'uncovered {left}')
+        else:
+            self.state = 'done'
+            self._event(t, 'done', 'no uncovered node left: coverage complete')
+
+    def _cover_node(self, t, d, node, cand, undone, node_of, cost):
+        """MorseDecompCoverage (vast) or TraceGVD (narrow) of ``node``: go to its nearest
+        undone piece (the current Morse cell first), by way of the cusp points of the graph
+        route when the node was just chosen, and follow the piece."""
+        cum, mcp, _ = cost
+        mine = cand & (d['owner'] == node.id)
+        score = np.where(mine, cum, np.inf)
+        if node.kind == 'vast':
             rc = d['reeb'][d['start']]
             if rc:
-                score = score + np.where((d['reeb'] == rc) | (node_of != self.current), 0.0,
-                                         self.spacing)
-        score = np.where(cand, score, np.inf)
+                score = score + np.where(d['reeb'] == rc, 0.0, self.spacing)
         gi = np.unravel_index(int(np.argmin(score)), score.shape)
-        # Keep the piece chosen at the last plan while it is still uncovered and reachable.
         if self.commit is not None:
             cc = d['to_cell'](*self.commit)
-            if cc is not None and cand[cc]:
+            if cc is not None and mine[cc]:
                 gi = cc
         self.commit = tuple(d['to_world']([gi[0]], [gi[1]])[0])
-        if node_of[gi] != self.current and node_of[gi] >= 0:
-            nxt = self.graph.nodes[int(node_of[gi])]
-            self._event(t, 'next_node', f'{nxt.kind} node {nxt.id} via '
-                                        f'{self.graph.graph_path(self.current, nxt.id)}')
-            self.current = nxt.id
-            node = nxt
-        path_cells = mcp.traceback(gi)
-        kind_mask = undone_lap if d['vast'][gi] else undone_gvd
-        path_cells = path_cells + self._extend(gi, kind_mask)
+        via = self._route_waypoints(d, node)
+        path_cells = self._path_via(d, mcp, cost[2], via, gi)
+        kind_mask = d['undone_lap'] if node.kind == 'vast' else d['undone_gvd']
+        path_cells = path_cells + self._extend(gi, kind_mask & (d['owner'] == node.id))
         pts = d['to_world']([p[0] for p in path_cells], [p[1] for p in path_cells])
         self.path = [tuple(p) for p in pts]
         self.path_i = 0
         self.goal = self.path[-1]
-        self.goal_kind = 'lap' if d['vast'][gi] else 'gvd'
+        self.goal_kind = 'lap' if node.kind == 'vast' else 'gvd'
         self.state = 'covering_' + node.kind
         self.decisions.append((round(t, 3), int(node.id), node.kind,
                                round(float(pts[-1][0]), 2), round(float(pts[-1][1]), 2)))
+
+    def _route_waypoints(self, d, node):
+        """Cusp points (or shared-boundary points) along the graph route to ``node``, once,
+        right after FindUncoveredNode chose it."""
+        hops = getattr(self, '_route', None)
+        self._route = None
+        if not hops or len(hops) < 2:
+            return []
+        out = []
+        here = self.pose[:2]
+        for a, b in zip(hops[:-1], hops[1:]):
+            p = self.graph.crossing(a, b, here)
+            if p is not None and d['to_cell'](*p) is not None:
+                out.append(p)
+                here = p
+        return out
+
+    def _path_via(self, d, mcp, cost, via, goal):
+        """Grid path from the robot through the route waypoints to ``goal`` (cells)."""
+        from skimage.graph import MCP_Geometric
+        cells = []
+        src = d['start']
+        for p in via:
+            c = d['to_cell'](*p)
+            if c is None or not np.isfinite(cost[c]):
+                continue
+            m = MCP_Geometric(cost)
+            m.find_costs([src])
+            cells += m.traceback(c)
+            src = c
+        if src == d['start']:
+            return cells + mcp.traceback(goal)
+        m = MCP_Geometric(cost)
+        cum, _ = m.find_costs([src])
+        if not np.isfinite(cum[goal]):
+            return mcp.traceback(goal)
+        return cells + m.traceback(goal)
 
     def _extend(self, start, mask, max_cells=40):
         """Continue from ``start`` along adjacent undone pieces of the same kind (the lapping
@@ -489,7 +707,7 @@ class CoveragePlanner:
     def _follow(self):
         """Holonomic pursuit of the path: world-frame velocity towards a lookahead point."""
         x, y, _ = self.pose
-        if getattr(self, '_escape', False):
+        if self._escape:
             return self._escape_velocity()
         if not self.path:
             return 0.0, 0.0
@@ -544,13 +762,29 @@ class CoveragePlanner:
         self._hist.clear()
         self._event(t, 'stuck', f'robot has not moved for {self.cfg.stuck_time:g} s '
                                 f'({self.stuck_count}/{self.cfg.max_stuck})')
-        if self.goal is not None:
-            self.blocked.append(self.goal)
+        self._retry_or_give_up(t)
         self.path, self.path_i = [], 0
         self.t_plan = -math.inf
         if self.stuck_count >= self.cfg.max_stuck:
             self.state = 'stuck'
         return True
+
+    def _retry_or_give_up(self, t):
+        """Recovery: block the goal so the next plan takes another piece or route; after
+        ``max_retries`` stuck events on the same node, give the node up (reported)."""
+        if self.goal is not None:
+            self.blocked.append(self.goal)
+        self.commit = None
+        n = self.current
+        if n is None:
+            return
+        self.retries[n] = self.retries.get(n, 0) + 1
+        if self.retries[n] >= self.cfg.max_retries and n not in self.given_up:
+            self.given_up.append(n)
+            self._event(t, 'gave_up', f'node {n} after {self.retries[n]} stuck events')
+            self.current = None
+        else:
+            self._event(t, 'retry', f'node {n}: retry {self.retries[n]} by another route')
 
     def _event(self, t, kind, detail):
         x, y = (self.pose[0], self.pose[1]) if self.pose else (math.nan, math.nan)
@@ -563,6 +797,7 @@ class CoveragePlanner:
         return {'state': self.state, 'current_node': self.current, 'sweeps': self.sweeps,
                 'nodes': len(self.graph.alive()),
                 'uncovered': [n.id for n in self.graph.alive() if not n.covered],
+                'given_up': sorted(set(self.given_up)),
                 'goal': list(self.goal) if self.goal else None,
                 'last_event': list(self.events[-1]) if self.events else None}
 

@@ -40,6 +40,7 @@ from paramotion.node import Param, ParamotionNode, run_node
 from paramotion.qos import LATCHED_QOS, SENSOR_QOS, STATE_QOS
 
 LEVEL = {'done': DiagnosticStatus.OK, 'stuck': DiagnosticStatus.ERROR,
+         'incomplete': DiagnosticStatus.ERROR,
          'waiting_for_sonar': DiagnosticStatus.WARN, 'error': DiagnosticStatus.ERROR}
 
 
@@ -66,9 +67,6 @@ class CoveragePlannerNode(ParamotionNode):
               max=30.0, read_only=True),
         Param('sonar_timeout', 0.5, 'Stop when no sweep for this long (s, sim time).',
               min=0.05, max=10.0, read_only=True),
-        Param('range_margin', 0.3, 'Margin kept off delta by the decomposition (m); '
-              'extended detector only.',
-              min=0.0, max=10.0, read_only=True),
         Param('clearance_margin', 0.1, 'Extra clearance beyond radius for paths (m); '
               'extended detector only (the baseline uses radius / 10).',
               min=0.0, max=2.0, read_only=True),
@@ -87,7 +85,7 @@ class CoveragePlannerNode(ParamotionNode):
         else:
             self.config = PlannerConfig(
                 delta=p.delta, radius=p.radius, detector=p.detector, resolution=p.resolution,
-                range_margin=p.range_margin, clearance_margin=p.clearance_margin, **common)
+                clearance_margin=p.clearance_margin, **common)
         self.driver = PlannerDriver(self.config, p.beam_width)
         self.cmd_pub = self.create_publisher(Twist, 'cmd_vel', STATE_QOS)
         self.status_pub = self.create_publisher(DiagnosticArray, '/coverage/status',
@@ -157,7 +155,7 @@ class CoveragePlannerNode(ParamotionNode):
         event = p.events[-1] if p.events else None
         if cmd.state != self.state:
             self._status(cmd.state, event[4] if event else cmd.state)
-            if cmd.state in ('done', 'stuck', 'waiting_for_sonar'):
+            if cmd.state in ('done', 'stuck', 'incomplete', 'waiting_for_sonar'):
                 self.get_logger().info(f'coverage planner: {cmd.state}: '
                                        f'{event[4] if event else ""}')
         if p.t_plan != self._last_plan:
@@ -222,13 +220,15 @@ class CoveragePlannerNode(ParamotionNode):
             m.points = [Point(x=q[0], y=q[1], z=0.1) for n in nodes for q in n.reeb_points]
             m = marker('meet_points', Marker.SPHERE_LIST, (0.5, 0.5, 0.5, 1.0), 0.3)
             m.points = [Point(x=q[0], y=q[1], z=0.1) for n in nodes for q in n.meet_points]
-            cusps = [c for (v, n), cs in p.graph.edges.items()
-                     if p.graph.nodes[v].alive and p.graph.nodes[n].alive for c in cs]
+            cusps = [c for (v, n) in p.graph.edges
+                     if p.graph.nodes[v].alive and p.graph.nodes[n].alive
+                     for c in p.graph.cusp_points(v, n)]
             m = marker('cusp_points', Marker.SPHERE_LIST, (1.0, 1.0, 1.0, 1.0), 0.3)
             m.points = [Point(x=c[0], y=c[1], z=0.1) for c in cusps]
             m = marker('graph_edges', Marker.LINE_LIST, (0.6, 0.0, 0.6, 1.0), 0.05)
-            for (v, n), cs in p.graph.edges.items():
+            for (v, n) in p.graph.edges:
                 a, b = p.graph.nodes[v], p.graph.nodes[n]
+                cs = p.graph.cusp_points(v, n)
                 if a.alive and b.alive:
                     for c in cs:
                         for u, w in ((a.centroid, c), (c, b.centroid)):

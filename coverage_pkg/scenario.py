@@ -76,7 +76,7 @@ def run_coverage(world_path, delta=2.0, radius=0.25, detector='extended', bag_di
 
         def finished():
             p = planner.planner
-            return p is not None and p.state in ('done', 'stuck')
+            return p is not None and p.state in ('done', 'stuck', 'incomplete')
         outcome = graph.run_lockstep(sim, until=finished, max_sim_time=max_sim_time)
         # One more period so the final status, markers and monitor figures are published, and a
         # moment of wall time for the recorder to receive the last messages.
@@ -99,7 +99,8 @@ def run_coverage(world_path, delta=2.0, radius=0.25, detector='extended', bag_di
             'delta_m': delta, 'radius_m': radius, 'detector_range_m': det_range,
             'sonar_max_range_m': sonar_max_range,
             'outcome': 'complete' if p is not None and p.state == 'done' else (
-                p.state if p is not None and p.state == 'stuck' else outcome),
+                p.state if p is not None and p.state in ('stuck', 'incomplete') else outcome),
+            'given_up_nodes': sorted(set(p.given_up)) if p is not None else [],
             'planner_state': p.state if p is not None else 'no_sweep',
             'sim_time_s': sim.sim_time, 'wall_time_s': wall,
             'covered_fraction_of_cvs': monitor.fraction,
@@ -111,8 +112,10 @@ def run_coverage(world_path, delta=2.0, radius=0.25, detector='extended', bag_di
                                   'sweeps': int(len(ut))},
             'hierarchical_graph': graph_dict,
             'decisions': [list(d) for d in (p.decisions if p is not None else [])],
-            'events': [list(e) for e in (p.events if p is not None else [])
-                       if e[1] != 'cusp_sensed'],
+            # Every event (sensed: critical, cusp, meet; cell_closed, node_created, ...):
+            # [sim time, kind, x, y (map), detail].
+            'events': [[e[0], e[1], e[2] + sx, e[3] + sy, e[4]]
+                       for e in (p.events if p is not None else [])],
             'frames': 'path and graph in map; the planner works in odom (origin at start)',
             'path': np.round(path, 3).tolist(),
         }
@@ -229,3 +232,20 @@ def register(subparsers):
         'per sonar sweep (median, p99) and wall time against sim time.')
     _common(bench)
     bench.set_defaults(func=_bench)
+    gen = subparsers.add_parser(
+        'coverage-worlds', help='write generated coverage worlds (unseen test inputs)',
+        description='Write N seeded worlds (rooms with doors, corridor mazes with dead ends, '
+        'L/T halls, clutter) in the world JSON format to a directory.')
+    gen.add_argument('--out', required=True, help='directory to write the worlds into')
+    gen.add_argument('--count', type=int, default=10, help='number of worlds')
+    gen.add_argument('--seed', type=int, default=0, help='seed of the first world')
+    gen.add_argument('--kind', default=None, help='rooms, maze, halls or mixed (default: the '
+                     'seed chooses)')
+    gen.set_defaults(func=_worlds)
+
+
+def _worlds(args):
+    from coverage_pkg.worldgen import write_worlds
+    paths = write_worlds(args.out, args.count, args.seed, args.kind)
+    print(f'{len(paths)} worlds written to {args.out}')
+    return 0

@@ -271,7 +271,7 @@ def test_hierarchical_graph_keeps_identity_merges_and_finds_uncovered_nodes():
     g.add_cusp(b, n, (11.5, 2.5))
     g.add_cusp(b, n, (11.6, 2.5))                  # same cusp seen again: not a new edge
     assert g.graph_path(a, b) == [a, n, b]
-    assert len(g.edges[(b, n)]) == 1
+    assert len(g.cusp_points(b, n)) == 1
     g.nodes[a].covered = True
     assert g.find_uncovered_node(a).id == n        # one cusp crossing before two
     # The map grows: the two vast cells turn out to be one; the node ids collapse into the

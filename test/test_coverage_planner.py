@@ -25,13 +25,13 @@ def test_small_world_is_covered_and_planner_says_done():
     assert r['covered_fraction'] >= 0.99
     assert r['path_length'] >= r['lower_bound']          # the bound is a bound
     p = r['planner']
-    kinds = {n.kind for n in p.graph.alive()}
-    assert kinds == {'vast', 'narrow'}
-    assert p.graph.edges                                   # cusp points link them
-    vast = [n for n in p.graph.alive('vast')]
-    assert any(n.reeb_points and n.reeb_edges for n in vast)   # each with its Reeb graph
-    assert p.graph.find_uncovered_node(vast[0].id) is None    # nothing left: FindUncoveredNode
+    # Every free point of this 9 m x 6 m room lies within delta = 2 m of a wall or of the
+    # obstacle, so VR = {D > delta} is empty: the whole space is one narrow cell (Sec. IV-A).
+    nodes = p.graph.alive()
+    assert [n.kind for n in nodes] == ['narrow'] and not p.graph.edges
+    assert p.graph.find_uncovered_node(nodes[0].id) is None   # nothing left: FindUncoveredNode
     assert p.events[-1][1] == 'done'
+    assert any(e[1] == 'meet' for e in p.events)              # meet points sensed on the GVD
 
 
 @pytest.mark.parametrize('seed', [7, 11])
