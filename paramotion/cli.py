@@ -19,6 +19,7 @@ SUBCOMMAND_MODULES = [
     'cable_robot_pkg.fast.scenario',      # paramotion fast
     'cable_robot_pkg.cdrpm.cli',         # paramotion workspace ...
     'paramotion.voronoi.cli',             # paramotion voronoi ...
+    'paramotion.launch',                  # paramotion launch FILE|NAME [name:=value ...]
 ]
 
 

@@ -1,13 +1,30 @@
-"""Start nodes as separate processes (what ``ros2 launch`` would do; launch_ros is not on PyPI).
+"""Run a launch file's nodes: one process per node (``paramotion launch``), or composed in one
+Graph (the scenario runners); and the older :class:`NodeProcess` helper.
 
-Each node runs ``python -m <module> --ros-args -r __node:=<name> -p name:=value ...`` in its own
-process group so that it can be interrupted (SIGINT, like Ctrl-C) and, if it hangs, killed.
+``paramotion launch FILE|NAME [name:=value ...]`` does what ``ros2 launch`` does with the XML
+that :mod:`paramotion.launch_xml` reads (``launch_ros`` is not installable here): it starts each
+``<node>`` through its installed executable (the console script ``ros2 run`` would run) as
+``EXEC --ros-args -r __node:=NAME -p k:=v -r from:=to``, prefixes every line a process prints
+with ``[EXEC-N]``, and on Ctrl-C (SIGINT) or SIGTERM interrupts every process, escalating to
+SIGTERM and then SIGKILL after timeouts. A node that dies stops the launch with a non-zero exit
+naming it, unless it has ``respawn="true"`` (restarted after ``respawn_delay`` seconds).
+Before anything starts, a missing executable or a parameter the node does not declare is
+refused with one line.
 """
+import importlib
+import inspect
 import os
+import shutil
 import signal
 import subprocess
 import sys
+import threading
 import time
+from pathlib import Path
+
+from paramotion.launch_xml import PACKAGE, LaunchError, load
+
+# --------------------------------------------------------------------------- executables
 
 
 def format_param(value):
@@ -21,8 +38,405 @@ def format_param(value):
     return repr(value)
 
 
+def console_scripts():
+    """paramotion's node executables: name -> 'module:function' (setup.py console scripts).
+
+    Read from the installed package metadata; in a source tree whose setup.py lists more than
+    the installed metadata (a node added since the last ``pip install -e .``), setup.py's
+    ``NODES`` list is read too.
+    """
+    scripts = {}
+    try:
+        from importlib.metadata import distribution
+        for ep in distribution(PACKAGE).entry_points:
+            if ep.group == 'console_scripts' and ep.name != PACKAGE:
+                scripts[ep.name] = ep.value
+    except Exception:  # not installed (plain source checkout on sys.path)
+        pass
+    setup_py = Path(__file__).resolve().parents[1] / 'setup.py'
+    if setup_py.is_file():
+        import ast
+        tree = ast.parse(setup_py.read_text())
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Assign) and any(
+                    getattr(t, 'id', None) == 'NODES' for t in node.targets):
+                for item in ast.literal_eval(node.value):
+                    name, _, target = (s.strip() for s in item.partition('='))
+                    scripts.setdefault(name, target)
+    return scripts
+
+
+def node_class(executable):
+    """The node class that executable ``executable`` runs (its module's one node class)."""
+    from rclpy.node import Node
+    target = console_scripts().get(executable)
+    if target is None:
+        raise LaunchError(f"executable '{executable}' is not a node of package '{PACKAGE}' "
+                          f'(known: {", ".join(sorted(console_scripts()))})')
+    module = importlib.import_module(target.partition(':')[0])
+    found = [c for _, c in inspect.getmembers(module, inspect.isclass)
+             if issubclass(c, Node) and c.__module__ == module.__name__]
+    leaves = [c for c in found if not any(o is not c and issubclass(o, c) for o in found)]
+    if len(leaves) != 1:
+        raise LaunchError(f"executable '{executable}': module {module.__name__} defines "
+                          f'{len(leaves)} node classes, expected one')
+    return leaves[0]
+
+
+def find_executable(package, executable):
+    """Path of ``executable`` of ``package`` as ``ros2 run`` finds it: ``lib/<package>/`` under
+    each ament prefix, then (for paramotion's own console scripts) the Python environment's
+    scripts directory, where ``pip install`` puts them. LaunchError (one line) if missing."""
+    looked = []
+    prefixes = [p for p in os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep) if p]
+    for prefix in prefixes + [sys.prefix]:
+        candidate = Path(prefix) / 'lib' / package / executable
+        looked.append(str(candidate.parent))
+        if candidate.is_file() and os.access(candidate, os.X_OK):
+            return str(candidate)
+    if package == PACKAGE and executable in console_scripts():
+        for d in dict.fromkeys([Path(sys.executable).parent,
+                                Path(sys.prefix) / 'bin']):
+            candidate = d / executable
+            looked.append(str(d))
+            if candidate.is_file() and os.access(candidate, os.X_OK):
+                return str(candidate)
+        which = shutil.which(executable)
+        if which:
+            return which
+    raise LaunchError(f"executable '{executable}' of package '{package}' not found (looked in "
+                      f"{', '.join(dict.fromkeys(looked))})")
+
+
+def check_parameters(desc):
+    """Refuse, with one line, a ``<param>`` that the node does not declare."""
+    for action in desc.nodes:
+        if action.package != PACKAGE:
+            continue
+        cls = node_class(action.executable)
+        declared = {p.name for p in getattr(cls, 'PARAMS', ())} | {
+            'use_sim_time', 'start_type_description_service'}
+        for name in action.params:
+            if name not in declared and not name.startswith('qos_overrides.'):
+                raise LaunchError(
+                    f"{action.where}: node '{action.label}' ({action.executable}) has no "
+                    f"parameter '{name}' (declared: "
+                    f"{', '.join(p.name for p in getattr(cls, 'PARAMS', ()))})")
+
+
+def node_command(action, executable_path):
+    """The command line that starts ``action`` (a launch_xml.NodeAction)."""
+    cmd = [executable_path] + list(action.args) + ['--ros-args']
+    if action.name:
+        cmd += ['-r', f'__node:={action.name}']
+    if action.namespace:
+        ns = action.namespace if action.namespace.startswith('/') else '/' + action.namespace
+        cmd += ['-r', f'__ns:={ns}']
+    for key, value in action.params.items():
+        cmd += ['-p', f'{key}:={format_param(value)}']
+    for src, dst in action.remaps:
+        cmd += ['-r', f'{src}:={dst}']
+    return cmd + list(action.ros_args)
+
+
+# --------------------------------------------------------------------------- one process
+def compose(graph, desc, extra_params=None):
+    """Add the launch description's nodes to ``graph`` (one process, one executor), in file
+    order, with their parameters, names, namespaces and remappings; returns {label: node}.
+
+    ``extra_params`` maps a node label to further parameter overrides (test fixtures and
+    scenario options beyond the launch arguments). The recorder is left to the caller
+    (``Graph.record``), which checks that every recorded topic has a publisher.
+    """
+    check_parameters(desc)
+    extra = dict(extra_params or {})
+    nodes = {}
+    for action in desc.nodes:
+        if action.executable == 'bag_recorder':
+            continue
+        params = {**action.params, **(extra.pop(action.label, None) or {})}
+        nodes[action.label] = graph.add(
+            node_class(action.executable), name=action.name or None,
+            namespace=action.namespace or None, remappings=dict(action.remaps), **params)
+    if extra:
+        raise LaunchError(f"{desc.path}: no node named '{sorted(extra)[0]}'")
+    return nodes
+
+
+def recorded_topics(desc):
+    """The topics the launch file's recorder records (its ``topics`` parameter)."""
+    for action in desc.nodes:
+        if action.executable == 'bag_recorder':
+            return [t for t in action.params.get('topics', []) if t]
+    raise LaunchError(f'{desc.path}: no bag_recorder node (pass record:=true)')
+
+
+def graph_from_launch(graph, name, launch_args=None, extra_params=None):
+    """Read launch file ``name`` with ``launch_args`` plus ``lockstep:=true`` and
+    ``record:=true`` and compose its nodes in ``graph``: the scenario runners' one-process
+    version of the graph. Returns ({label: node}, recorded topics)."""
+    args = {'lockstep': True, 'record': True, **(launch_args or {})}
+    desc = load(name, args)
+    return compose(graph, desc, extra_params), recorded_topics(desc)
+
+
+# --------------------------------------------------------------------------- processes
+class _Proc:
+    """One launched node process (restarted in place when it respawns)."""
+
+    def __init__(self, action, label, cmd, env, echo, log_dir):
+        self.action, self.label, self.cmd, self.env = action, label, cmd, env
+        self.echo = echo
+        self.log = open(Path(log_dir) / f'{label}.log', 'a') if log_dir else None
+        self.popen = None
+        self.respawn_at = None
+        self.handled = False
+        self.threads = []
+
+    def start(self):
+        self.handled = False
+        self.popen = subprocess.Popen(self.cmd, env=self.env, stdout=subprocess.PIPE,
+                                      stderr=subprocess.PIPE, start_new_session=True)
+        self.threads = [threading.Thread(target=self._pump, args=(stream, show), daemon=True)
+                        for stream, show in ((self.popen.stdout,
+                                              self.action.output in ('screen', 'both')),
+                                             (self.popen.stderr, True))]
+        for t in self.threads:
+            t.start()
+        self.echo(f'[INFO] [{self.label}]: process started with pid [{self.popen.pid}]')
+
+    def _pump(self, stream, show):
+        for raw in iter(stream.readline, b''):
+            line = raw.decode(errors='replace').rstrip('\n')
+            if self.log is not None:
+                self.log.write(line + '\n')
+                self.log.flush()
+            if show:
+                self.echo(f'[{self.label}] {line}')
+        stream.close()
+
+    def running(self):
+        return self.popen is not None and self.popen.poll() is None
+
+    def signal(self, sig):
+        if self.running():
+            try:
+                os.killpg(self.popen.pid, sig)
+            except ProcessLookupError:
+                pass
+
+    def join_output(self, timeout=2.0):
+        for t in self.threads:
+            t.join(timeout)
+
+
+class Launcher:
+    """Start, watch and stop the processes of a launch description.
+
+    ``start()`` checks everything first (executables, parameters), then starts the nodes in
+    file order; ``poll()`` handles exits (respawn, or failure naming the node) and returns
+    False once the launch is over; ``shutdown()`` interrupts and reaps every process.
+    ``failed`` names the node that died, if one did.
+    """
+
+    def __init__(self, desc, echo=None, log_dir=None, sigterm_timeout=5.0, sigkill_timeout=5.0,
+                 env=None):
+        self.desc = desc
+        self.echo_lock = threading.Lock()
+        self._echo = echo or self._print
+        self.log_dir = log_dir
+        self.sigterm_timeout, self.sigkill_timeout = sigterm_timeout, sigkill_timeout
+        self.env = {**os.environ, **(env or {}), 'PYTHONUNBUFFERED': '1'}
+        self.procs = []
+        self.failed = None
+        self.stopping = False
+
+    def _print(self, line):
+        print(line, flush=True)
+
+    def echo(self, line):
+        with self.echo_lock:
+            self._echo(line)
+
+    def prepare(self):
+        """Resolve every executable and check every parameter; nothing starts on error."""
+        paths = []
+        for a in self.desc.nodes:
+            try:
+                paths.append(find_executable(a.package, a.executable))
+            except LaunchError as exc:
+                raise LaunchError(f"{a.where}: node '{a.label}': {exc}") from None
+        check_parameters(self.desc)
+        if self.log_dir:
+            Path(self.log_dir).mkdir(parents=True, exist_ok=True)
+        counts = {}
+        for k, (action, path) in enumerate(zip(self.desc.nodes, paths), start=1):
+            base = Path(action.executable).name
+            counts[base] = counts.get(base, 0) + 1
+            self.procs.append(_Proc(action, f'{base}-{k}', node_command(action, path),
+                                    {**self.env, **action.env}, self.echo, self.log_dir))
+        return self
+
+    def start(self):
+        if not self.procs:
+            self.prepare()
+        for p in self.procs:
+            p.start()
+        return self
+
+    def poll(self):
+        """Handle exited processes; False when the launch is over (all gone or one died)."""
+        now = time.monotonic()
+        alive = False
+        for p in self.procs:
+            if p.respawn_at is not None:
+                if now >= p.respawn_at and not self.stopping:
+                    p.respawn_at = None
+                    self.echo(f'[INFO] [{p.label}]: respawning')
+                    p.start()
+                alive = True
+                continue
+            code = p.popen.poll()
+            if code is None:
+                alive = True
+                continue
+            if p.handled:
+                continue
+            p.handled = True
+            p.join_output()
+            if self.stopping:
+                continue
+            if code == 0:
+                self.echo(f'[INFO] [{p.label}]: process has finished cleanly '
+                          f'[pid {p.popen.pid}]')
+            else:
+                self.echo(f'[ERROR] [{p.label}]: process has died [pid {p.popen.pid}, exit '
+                          f"code {code}, cmd '{' '.join(p.cmd)}']")
+            if p.action.respawn:
+                p.respawn_at = now + p.action.respawn_delay
+                alive = True
+            elif code != 0 and self.failed is None:
+                self.failed = p
+        return alive and self.failed is None
+
+    def shutdown(self):
+        """SIGINT every process; SIGTERM after ``sigterm_timeout``, SIGKILL after
+        ``sigkill_timeout`` more. Returns {label: exit code}."""
+        self.stopping = True
+        for sig, timeout in ((signal.SIGINT, self.sigterm_timeout),
+                             (signal.SIGTERM, self.sigkill_timeout), (signal.SIGKILL, 10.0)):
+            running = [p for p in self.procs if p.running()]
+            if not running:
+                break
+            if sig != signal.SIGINT:
+                self.echo(f'[WARNING] [launch]: sending {sig.name} to '
+                          f"{', '.join(p.label for p in running)}")
+            for p in running:
+                p.signal(sig)
+            end = time.monotonic() + timeout
+            while time.monotonic() < end and any(p.running() for p in running):
+                time.sleep(0.02)
+        codes = {}
+        for p in self.procs:
+            if p.popen is not None:
+                p.popen.wait()
+                p.join_output()
+                codes[p.label] = p.popen.returncode
+            if p.log is not None:
+                p.log.close()
+        return codes
+
+    def failure_message(self):
+        p = self.failed
+        if p is None:
+            return None
+        return (f"node '{p.action.label}' ({p.label}) died with exit code "
+                f'{p.popen.returncode}')
+
+
+def run(desc, log_dir=None, period=0.05):
+    """``paramotion launch``: start, watch until Ctrl-C/SIGTERM or a node dies, stop.
+
+    Returns 0 after a requested stop, 1 if a node died (the message names it)."""
+    launcher = Launcher(desc, log_dir=log_dir).prepare()
+    stop = threading.Event()
+    previous = {}
+
+    def on_signal(signum, frame):
+        if stop.is_set():          # second Ctrl-C: go straight to the escalation
+            launcher.sigterm_timeout = 0.0
+        stop.set()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        previous[sig] = signal.signal(sig, on_signal)
+    try:
+        launcher.start()
+        while not stop.wait(period):
+            if not launcher.poll():
+                break
+        if stop.is_set():
+            launcher.echo('[WARNING] [launch]: user interrupted with ctrl-c (SIGINT)')
+    finally:
+        launcher.shutdown()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    message = launcher.failure_message()
+    if message:
+        print(f'paramotion launch: error: {message}', file=sys.stderr, flush=True)
+        return 1
+    return 0
+
+
+# --------------------------------------------------------------------------- CLI
+def _cli(args):
+    from paramotion import launch_xml
+    items = list(args.items)
+    if len(items) >= 2 and items[0] == PACKAGE and ':=' not in items[1]:
+        items = items[1:]  # ros2 launch form: paramotion launch paramotion coverage.launch.xml
+    if not items or ':=' in items[0]:
+        raise LaunchError('expected a launch file or name first (e.g. coverage)')
+    launch_args = launch_xml.parse_cli_args(items[1:])
+    if args.show_args:
+        path = launch_xml.find_launch_file(items[0])
+        desc = launch_xml.load(path, {})
+        print(f'Arguments of {path} (pass arguments as <name>:=<value>):')
+        for decl in desc.args.values():
+            print(f"    '{decl.name}':")
+            print(f'        {decl.description or "no description given"}')
+            if decl.choices:
+                print(f'        Valid choices are: {list(decl.choices)}')
+            print(f"        (default: '{decl.default}')" if decl.default is not None
+                  else '        (required)')
+        return 0
+    desc = launch_xml.load(items[0], launch_args)
+    if args.print:
+        launcher = Launcher(desc).prepare()
+        for p in launcher.procs:
+            print(f'[{p.label}] ' + ' '.join(p.cmd))
+        return 0
+    return run(desc, log_dir=args.log_dir)
+
+
+def register(subparsers):
+    """Add ``paramotion launch``."""
+    parser = subparsers.add_parser(
+        'launch', help='start a launch file, one process per node (like ros2 launch)',
+        description='Start the nodes of a ROS 2 XML launch file (a path, or one of the '
+        'packaged ones by name: coverage, climber, fast, workspace, voronoi), each in its own '
+        'process; Ctrl-C stops them all.')
+    parser.add_argument('items', nargs='+', metavar='FILE|NAME [name:=value ...]',
+                        help='launch file or name, then launch arguments')
+    parser.add_argument('-s', '--show-args', action='store_true',
+                        help="show the launch file's arguments and exit")
+    parser.add_argument('-p', '--print', action='store_true',
+                        help='print the command of every process and exit')
+    parser.add_argument('--log-dir', default=None,
+                        help='also write each process output to LOG_DIR/<process>.log')
+    parser.set_defaults(func=_cli)
+
+
+# --------------------------------------------------------------------------- older helper
 class NodeProcess:
-    """One node running in a child process."""
+    """One node running in a child process (``python -m module``), output to a log file."""
 
     def __init__(self, module, name=None, params=None, remap=None, env=None, log_path=None):
         args = [sys.executable, '-m', module, '--ros-args']

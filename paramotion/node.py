@@ -138,6 +138,19 @@ class ParamotionNode(Node):
         overrides = list(kwargs.pop('parameter_overrides', None) or [])
         overrides = [_coerce_override(self.PARAMS, p) for p in overrides]
         super().__init__(node_name, parameter_overrides=overrides, **kwargs)
+        # rclpy silently ignores a value given for a parameter nobody declares (a typo in a
+        # launch file or on the command line); refuse it instead, naming it.
+        known = set(self._parameters) | {p.name for p in self.PARAMS}
+        unknown = sorted(n for n in self._parameter_overrides
+                         if n not in known and not n.startswith('qos_overrides.'))
+        if unknown:
+            raise ParameterError(
+                f"{node_name}: unknown parameter '{unknown[0]}' (declared: "
+                f"{', '.join(p.name for p in self.PARAMS)})")
+        # Command-line and launch-file values (``-p real_time_factor:=4``) reach rclpy as
+        # integers; give a double parameter its declared type, as for Graph overrides.
+        for name, param in list(self._parameter_overrides.items()):
+            self._parameter_overrides[name] = _coerce_override(self.PARAMS, param)
         if 'use_sim_time' not in self._parameter_overrides:
             self.set_parameters([Parameter('use_sim_time', value=self.USE_SIM_TIME_DEFAULT)])
         self._specs = {p.name: p for p in self.PARAMS}
