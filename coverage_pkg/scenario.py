@@ -21,14 +21,17 @@ from coverage_pkg.planner import PlannerConfig
 from coverage_pkg.sonar import SonarRing
 from coverage_pkg.world import load_world
 from paramotion.errors import UserError
+from paramotion.launch_xml import load as load_launch
+from paramotion.launch_xml import recorded_topics
 from paramotion.scenario_io import add_output_args, output_dir, write_json
 
+# The graph (nodes, parameters, recorded topics) is described once, in
+# launch/coverage.launch.xml; this runner composes it in one process.
 # /sonar/ranges (16 Range messages per sweep) is not recorded by default: in a lock-step Graph
 # most of each burst is dropped before it reaches the recorder (see docs/coverage.md); the same
 # sweep is recorded whole as /sonar/scan. Add it with --record-topics if wanted.
-TOPICS = ['/clock', '/coverage/ground_truth', '/odom', '/sonar/scan', '/cmd_vel',
-          '/coverage/status', '/coverage/graph', '/coverage/markers',
-          '/coverage/covered_fraction']
+LAUNCH_FILE = 'coverage'
+TOPICS = recorded_topics(load_launch(LAUNCH_FILE, {'record': True}))
 
 
 def validate_inputs(world_path, delta, radius, detector, sonar_max_range, max_sim_time=1.0):
@@ -54,25 +57,22 @@ def run_coverage(world_path, delta=2.0, radius=0.25, detector='extended', bag_di
     ``bag_dir`` records ``topics`` (default :data:`TOPICS`); extra node parameters go in
     ``sonar_params`` / ``planner_params``.
     """
-    from coverage_pkg.monitor_node import CoverageMonitorNode
-    from coverage_pkg.planner_node import CoveragePlannerNode
-    from coverage_pkg.sim_node import CoverageSimNode
-    from coverage_pkg.sonar_node import CoverageSonarNode
     from paramotion.graph import Graph
+    from paramotion.launch import graph_from_launch
 
     world = validate_inputs(world_path, delta, radius, detector, sonar_max_range, max_sim_time)
     det_range = radius if detector == 'robot' else delta
     wall0 = time.monotonic()
     with Graph(domain_id=domain_id) as graph:
-        sim = graph.add(CoverageSimNode, world=str(world_path), radius=float(radius))
-        graph.add(CoverageSonarNode, world=str(world_path), max_range=float(sonar_max_range),
-                  seed=int(seed), **(sonar_params or {}))
-        planner = graph.add(CoveragePlannerNode, delta=float(delta), radius=float(radius),
-                            detector=detector, **(planner_params or {}))
-        monitor = graph.add(CoverageMonitorNode, world=str(world_path), radius=float(radius),
-                            delta=float(det_range))
+        nodes, launch_topics = graph_from_launch(
+            graph, LAUNCH_FILE, {'world': str(world_path), 'radius': float(radius),
+                                 'delta': float(delta), 'detector': detector,
+                                 'sonar_max_range': float(sonar_max_range), 'seed': int(seed)},
+            extra_params={'coverage_sonar': sonar_params, 'coverage_planner': planner_params})
+        sim, planner, monitor = (nodes[n] for n in ('coverage_sim', 'coverage_planner',
+                                                    'coverage_monitor'))
         if bag_dir is not None:
-            graph.record(bag_dir, topics or TOPICS)
+            graph.record(bag_dir, topics or launch_topics)
 
         def finished():
             p = planner.planner

@@ -22,7 +22,7 @@ import threading
 import time
 from pathlib import Path
 
-from paramotion.launch_xml import PACKAGE, LaunchError, load
+from paramotion.launch_xml import PACKAGE, LaunchError, load, recorded_topics
 
 # --------------------------------------------------------------------------- executables
 
@@ -161,14 +161,6 @@ def compose(graph, desc, extra_params=None):
     if extra:
         raise LaunchError(f"{desc.path}: no node named '{sorted(extra)[0]}'")
     return nodes
-
-
-def recorded_topics(desc):
-    """The topics the launch file's recorder records (its ``topics`` parameter)."""
-    for action in desc.nodes:
-        if action.executable == 'bag_recorder':
-            return [t for t in action.params.get('topics', []) if t]
-    raise LaunchError(f'{desc.path}: no bag_recorder node (pass record:=true)')
 
 
 def graph_from_launch(graph, name, launch_args=None, extra_params=None):

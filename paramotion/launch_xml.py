@@ -596,6 +596,15 @@ class _Reader:
         self.nodes.append(node)
 
 
+def recorded_topics(desc):
+    """The topics the launch file's recorder records (its ``topics`` parameter)."""
+    for action in desc.nodes:
+        if action.executable == 'bag_recorder':
+            topics = action.params.get('topics', [])
+            return [t for t in (topics if isinstance(topics, list) else [topics]) if t]
+    raise LaunchError(f'{desc.path}: no bag_recorder node (pass record:=true)')
+
+
 def load(spec, launch_args=None):
     """Read launch file ``spec`` (path or short name) with ``launch_args`` (name -> value;
     values may be Python values, converted with :func:`arg_text`)."""
@@ -605,5 +614,6 @@ def load(spec, launch_args=None):
 
 
 __all__ = ['ArgDecl', 'LaunchDescription', 'LaunchError', 'NodeAction', 'arg_text',
-           'find_launch_file', 'load', 'parse_cli_args', 'safe_eval', 'share_directory',
+           'find_launch_file', 'load', 'parse_cli_args', 'recorded_topics', 'safe_eval',
+           'share_directory',
            'typed_value']
