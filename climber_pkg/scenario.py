@@ -24,14 +24,14 @@ from climber_pkg.robot import load_robot_config
 from climber_pkg.trunk import Trunk
 from paramotion import gough_stewart as gs
 from paramotion.errors import UserError
+from paramotion.launch_xml import load as load_launch
+from paramotion.launch_xml import recorded_topics
 from paramotion.scenario_io import add_output_args, output_dir, write_json
 
-TOPICS = ['/clock', '/climber/ground_truth', '/climber/joint_states',
-          '/climber/ring1/ultrasonic', '/climber/ring2/ultrasonic',
-          '/climber/ring1/clamp_closed', '/climber/ring2/clamp_closed',
-          '/climber/ring1/clamp_command', '/climber/ring2/clamp_command',
-          '/climber/leg_command', '/climber/planned_pose', '/climber/planned_path',
-          '/climber/status', '/climber/sim_status']
+# The graph (nodes, parameters, recorded topics) is described once, in
+# launch/climber.launch.xml; this runner composes it in one process.
+LAUNCH_FILE = 'climber'
+TOPICS = recorded_topics(load_launch(LAUNCH_FILE, {'record': True}))
 
 
 def check_trunk_fits(trunk, robot, path, margin=0.03):
@@ -60,10 +60,8 @@ def run_climb(trunk_file, bag_dir=None, delta=0.10, cycles=0, max_time=None, noi
               sample_every=5, domain_id=None, physics_dt=0.002, mode='climb',
               turn_deg=0.0, start_length=None):
     """Run the climbing graph; returns (result dict, trace dict for plotting, trunk)."""
-    from climber_pkg.planner_node import ClimberPlannerNode
-    from climber_pkg.sim_node import ClimberSimNode
-    from climber_pkg.ultrasonic_node import ClimberUltrasonicNode
     from paramotion.graph import Graph
+    from paramotion.launch import graph_from_launch
 
     trunk = Trunk.from_file(trunk_file)
     robot = load_robot_config(robot_config or None)
@@ -82,22 +80,18 @@ def run_climb(trunk_file, bag_dir=None, delta=0.10, cycles=0, max_time=None, noi
              'both_clamps_open_samples': 0, 'samples': 0}
     centering = []
     with Graph(domain_id=domain_id) as graph:
-        sim = graph.add(ClimberSimNode, trunk_file=str(trunk_file), robot_config=robot_config,
-                        start_s=float(start_s), publish_period=float(publish_period),
-                        start_length=float(start_length or (
-                            0.5 * (robot.geometry.leg_min + robot.geometry.leg_max)
-                            if mode == 'turn' else robot.geometry.leg_min + 0.05)),
-                        physics_dt=float(physics_dt))
-        for ring in (1, 2):
-            graph.add(ClimberUltrasonicNode, name=f'climber_ultrasonic_ring{ring}', ring=ring,
-                      trunk_file=str(trunk_file), robot_config=robot_config,
-                      noise_std=float(noise), dropout_probability=float(dropout),
-                      fault_probability=float(fault), seed=int(seed))
-        planner = graph.add(ClimberPlannerNode, robot_config=robot_config, delta=float(delta),
-                            delta_min=min(0.05, float(delta)), n_cycles=int(cycles),
-                            mode=mode, turn_angle_deg=float(turn_deg))
+        nodes, topics = graph_from_launch(graph, LAUNCH_FILE, {
+            'trunk': str(trunk_file), 'robot_config': robot_config, 'start_s': float(start_s),
+            'publish_period': float(publish_period), 'physics_dt': float(physics_dt),
+            'start_length': float(start_length or (
+                0.5 * (robot.geometry.leg_min + robot.geometry.leg_max)
+                if mode == 'turn' else robot.geometry.leg_min + 0.05)),
+            'noise': float(noise), 'dropout': float(dropout), 'fault': float(fault),
+            'seed': int(seed), 'delta': float(delta), 'cycles': int(cycles), 'mode': mode,
+            'turn_deg': float(turn_deg)})
+        sim, planner = nodes['climber_sim'], nodes['climber_planner']
         if bag_dir is not None:
-            graph.record(bag_dir, TOPICS)
+            graph.record(bag_dir, topics)
         gait = planner.gait
         start_poses = sim.ring_poses()
         counter = {'k': 0, 'measures': 0}
