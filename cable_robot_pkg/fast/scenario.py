@@ -21,16 +21,14 @@ from pathlib import Path
 import numpy as np
 
 from paramotion.errors import UserError
+from paramotion.launch_xml import load as load_launch
+from paramotion.launch_xml import recorded_topics
 from paramotion.scenario_io import add_output_args, output_dir, write_json
 
-BAG_TOPICS = [
-    '/clock', '/fast/ground_truth/trolley', '/fast/ground_truth/upper_platform',
-    '/fast/ground_truth/feed', '/fast/feed_target', '/fast/trolley_target',
-    '/fast/tracker/trolley', '/fast/tracker/upper_platform', '/fast/tracker/feed',
-    '/fast/cables/state', '/fast/winches/state', '/fast/cables/command', '/fast/legs/state',
-    '/fast/legs/command', '/fast/orienting/state', '/fast/orienting/command', '/fast/wind',
-    '/diagnostics',
-]
+# The graph (nodes, parameters, recorded topics) is described once, in
+# launch/fast.launch.xml; this runner composes it in one process.
+LAUNCH_FILE = 'fast'
+BAG_TOPICS = recorded_topics(load_launch(LAUNCH_FILE, {'record': True}))
 SPEC_POSITION_MM = 4.0
 SPEC_ORIENTATION_DEG = 0.1
 
@@ -44,25 +42,24 @@ def run_graph(duration, config='', wind=1.0, latency=0.02, isolation=True, mode=
     Returns a dict with the nodes' statistics and, when ``record_series``, time series of the
     ground truth and targets captured in-process (used when no bag is written).
     """
-    from cable_robot_pkg.fast.cable_pid_node import CablePidNode
-    from cable_robot_pkg.fast.feed_trajectory_node import FeedTrajectoryNode
-    from cable_robot_pkg.fast.isolation_node import IsolationNode
-    from cable_robot_pkg.fast.optical_tracker_node import OpticalTrackerNode
-    from cable_robot_pkg.fast.sim_node import FastSimNode
     from paramotion.graph import Graph
+    from paramotion.launch import graph_from_launch
 
     tracker = dict(tracker or {})
     tracker.setdefault('latency', float(latency))
     wall = time.monotonic()
     series = {'t': [], 'trolley': [], 'feed': [], 'feed_R': [], 'legs': []}
     with Graph(domain_id=domain_id) as graph:
-        sim = graph.add(FastSimNode, config=config, wind=float(wind), wind_seed=int(wind_seed))
-        trk = graph.add(OpticalTrackerNode, **tracker)
-        graph.add(FeedTrajectoryNode, config=config)
-        cab = graph.add(CablePidNode, config=config)
-        iso = graph.add(IsolationNode, config=config, enabled=bool(isolation), mode=mode)
+        nodes, launch_topics = graph_from_launch(
+            graph, LAUNCH_FILE, {'config': str(config or ''), 'wind': float(wind),
+                                 'wind_seed': int(wind_seed), 'latency': tracker['latency'],
+                                 'isolation': bool(isolation), 'isolation_mode': mode},
+            extra_params={'fast_tracker': tracker})
+        sim, trk, cab, iso = (nodes[n] for n in ('fast_sim', 'fast_tracker',
+                                                 'fast_cable_controller',
+                                                 'fast_isolation_controller'))
         if bag_dir is not None:
-            graph.record(bag_dir, topics or BAG_TOPICS)
+            graph.record(bag_dir, topics or launch_topics)
 
         def sample():
             if not record_series:
