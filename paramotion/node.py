@@ -138,6 +138,7 @@ class ParamotionNode(Node):
         overrides = list(kwargs.pop('parameter_overrides', None) or [])
         overrides = [_coerce_override(self.PARAMS, p) for p in overrides]
         super().__init__(node_name, parameter_overrides=overrides, **kwargs)
+        node_name = self.get_name()  # as remapped (__node:=...): errors name this instance
         # rclpy silently ignores a value given for a parameter nobody declares (a typo in a
         # launch file or on the command line); refuse it instead, naming it.
         known = set(self._parameters) | {p.name for p in self.PARAMS}
