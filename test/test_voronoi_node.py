@@ -75,13 +75,19 @@ def test_get_plan_returns_a_verified_path_and_latches_outputs(graph):
     assert independent_check(q) is None
     # Latched outputs reach the subscriber: path, markers with scene, diagram and path.
     graph.spin_wall(5.0, until=lambda: bool(client.paths and client.markers
-                                            and len(client.markers[-1].markers) == 3))
+                                            and len(client.markers[-1].markers) == 4))
     assert client.paths, 'no path message'
     assert client.markers, 'no markers'
     assert len(client.paths[-1].poses) == len(poses)
     namespaces = {m.ns: m for m in client.markers[-1].markers}
-    assert set(namespaces) == {'scene', 'diagram', 'path'}
+    assert set(namespaces) == {'scene', 'diagram', 'path', 'diagram_used'}
     assert len(namespaces['diagram'].points) > 20
+    # The used diagram edges are the path's own pieces: every end point lies on the path.
+    used = np.array([[p.x, p.y] for p in namespaces['diagram_used'].points])
+    assert len(used) >= 2 and len(used) % 2 == 0
+    gap = np.min(np.hypot(used[:, None, 0] - q[None, :, 0], used[:, None, 1] - q[None, :, 1]),
+                 axis=1)
+    assert gap.max() < 1e-6
     status = client.last_status()
     assert status.message == 'path found'
     assert node.requests == 1

@@ -24,7 +24,7 @@ from paramotion.voronoi.planar import (
     paper_model,
     planar_model,
 )
-from paramotion.voronoi.planner import VoronoiPlanner
+from paramotion.voronoi.planner import ATTACH, RETRACTION, SLICE_LINK, SLICE_PIECE, VoronoiPlanner
 
 SQUARE = np.array([[-25, 40], [-25, -40], [55, -40], [55, 40]], dtype=float)
 
@@ -125,6 +125,19 @@ def independent_check(path, base=((0.0, 0.0), (15.0, 0.0)), length=10.0, boundar
     return None
 
 
+def near_diagram_fraction(model, path, delta, phi_scale=10.0):
+    """Length share of ``path`` (phi weighted by ``phi_scale``) whose samples lie within
+    ``delta`` (in x or y) of a change of the active leaf of rho, i.e. of the simplified Voronoi
+    diagram - measured from rho directly, not from the planner's bookkeeping."""
+    path = np.asarray(path, dtype=float)
+    acts = np.array([model.evaluate(path + np.array([dx, dy, 0.0]))[1]
+                     for dx, dy in ((0, 0), (delta, 0), (-delta, 0), (0, delta), (0, -delta))])
+    near = np.any(acts != acts[:1], axis=0)
+    d = np.diff(path, axis=0)
+    length = np.sqrt(d[:, 0] ** 2 + d[:, 1] ** 2 + (phi_scale * d[:, 2]) ** 2)
+    return float(length[near[:-1] & near[1:]].sum() / length.sum())
+
+
 @pytest.fixture(scope='module')
 def paper_planner():
     return VoronoiPlanner(paper_model())
@@ -144,7 +157,17 @@ def test_paper_query_is_solved_and_verified_independently(paper_planner):
     assert independent_check(path) is None
     # The path keeps clear of the obstacles: rho is far above its change per step.
     assert res.min_rho > 10 * res.max_rho_step
-    assert res.stats['diagram_vertices'] < 0.25 * res.stats['free_vertices']
+    # Only the two retraction climbs are off the diagram; everything between them is
+    # diagram pieces and links, and the path really runs where the active leaf changes.
+    assert res.stats['retraction_on_diagram'] == [True, True]
+    kinds = res.segment_kinds
+    middle = kinds[np.flatnonzero(kinds != RETRACTION)[0]:np.flatnonzero(kinds != RETRACTION)[-1]]
+    assert np.all(np.isin(middle, [SLICE_PIECE, SLICE_LINK, ATTACH]))
+    assert 0.5 < res.on_diagram_fraction <= 1.0
+    assert near_diagram_fraction(paper_planner.model, path, 0.05) >= 0.97 * res.on_diagram_fraction
+    # Clearance profile: rho at every dense sample along the arc length.
+    assert res.clearance.shape == (len(path), 2)
+    assert np.all(np.diff(res.clearance[:, 0]) >= 0) and res.clearance[:, 1].min() == res.min_rho
 
 
 def test_independent_checker_detects_a_bad_path():

@@ -34,9 +34,10 @@ active-leaf field, tie points from the two affine leaves), for figures and marke
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import cKDTree
 
-__all__ = ['Roadmap', 'SliceFields', 'build_roadmap', 'diagram_mask', 'grid_axes',
-           'slice_fields', 'tie_segments']
+__all__ = ['DiagramSlice', 'SliceFields', 'affine_coefficients', 'diagram_mask',
+           'diagram_slices', 'grid_axes', 'link_slices', 'slice_fields', 'tie_segments']
 
 # In-slice neighbour offsets (dy, dx) covering the 8-neighbourhood once per unordered pair.
 _HALF8 = ((0, 1), (1, 0), (1, 1), (1, -1))
@@ -164,155 +165,169 @@ def tie_segments(model, phi, xs, ys, program='total', free_only=True):
     return np.asarray(segs, dtype=float).reshape(-1, 2, 2)
 
 
+def affine_coefficients(model, phis, program='total'):
+    """Exact affine form of every determinant per orientation slice.
+
+    For a fixed phi every moving point is P3 plus a constant, so each 3x3 determinant is affine
+    in (x, y): ``D = A + B x + C y``. Returns ``(A, B, C)``, each ``(nphi, n_keys)``, from
+    three evaluations per slice.
+    """
+    prog = model.programs[program]
+    phis = np.atleast_1d(np.asarray(phis, dtype=float))
+    q = np.zeros((3, len(phis), 3))
+    q[1, :, 0] = 1.0
+    q[2, :, 1] = 1.0
+    q[:, :, 2] = phis
+    d = model.determinants(q, prog)            # (n_keys, 3, nphi)
+    return d[:, 0].T, (d[:, 1] - d[:, 0]).T, (d[:, 2] - d[:, 0]).T
+
+
 @dataclass
-class Roadmap:
-    """Sampled simplified Voronoi roadmap over all slices (see the module docstring)."""
+class DiagramSlice:
+    """The simplified Voronoi diagram of one orientation slice as a graph of exact tie points.
 
-    fields: SliceFields
-    periodic: bool
-    phi_scale: float          # length per radian used for edge costs
-    node_mask: np.ndarray     # (nphi, ny, nx) diagram vertices
-    succ: np.ndarray          # (N,) steepest-ascent successor (flat indices)
-    root: np.ndarray          # (N,) diagram vertex each free vertex retracts to
-    pair_lo: np.ndarray       # (E,) roadmap edges: flat index of the lower diagram vertex
-    pair_hi: np.ndarray       # (E,) and of the higher one
-    pair_start: np.ndarray    # (E + 1,) range of each pair in the witness arrays
-    wit_u: np.ndarray         # witnesses, grouped by pair, largest clearance first
-    wit_v: np.ndarray
-    wit_clearance: np.ndarray  # min rho at the witness's two vertices
+    ``xyz``: node configurations (x, y, phi); ``pair``: code ``la * n_leaves + lb`` (la < lb)
+    of the two leaves that tie there (-1 for junction nodes); ``rho``: rho at the node;
+    ``edges``: ``(m, 2)`` local node ids of the straight diagram pieces joining them.
+    """
 
-    def witness_cost(self, w):
-        """Length of the roadmap edge through witnesses ``w``: root(u) -> u -> v -> root(v),
-        phi weighted by ``phi_scale`` (straight-line estimate of the retraction chains)."""
-        u, v = self.wit_u[w], self.wit_v[w]
-        pts = [self.position(self.root[u]), self.position(u), self.position(v),
-               self.position(self.root[v])]
-        return sum(_dist(self.phi_scale, self.periodic, a, b) for a, b in zip(pts, pts[1:]))
+    phi: float
+    xyz: np.ndarray
+    pair: np.ndarray
+    rho: np.ndarray
+    edges: np.ndarray
+    _tree: object = None
 
     @property
-    def shape(self):
-        return self.fields.rho.shape
-
-    @property
-    def n_vertices(self):
-        return int(np.prod(self.shape))
-
-    def position(self, flat):
-        """Configurations (x, y, phi) of flat vertex indices."""
-        k, j, i = np.unravel_index(np.asarray(flat), self.shape)
-        f = self.fields
-        return np.stack([f.xs[i], f.ys[j], f.phis[k]], axis=-1)
-
-    def chain(self, u):
-        """Retraction path of vertex ``u``: ``[u, succ(u), ..., root(u)]``."""
-        out = [int(u)]
-        while self.succ[out[-1]] != out[-1]:
-            out.append(int(self.succ[out[-1]]))
-        return out
-
-    def nearest_vertices(self, q, k=4):
-        """Flat indices of free grid vertices near configuration ``q`` in slice ``q[2]``."""
-        f = self.fields
-        d = np.abs(f.phis - q[2])
-        if self.periodic:
-            d = np.minimum(d, 2 * np.pi - d)
-        ks = int(np.argmin(d))
-        ix = np.argsort(np.abs(f.xs - q[0]))[:3]
-        iy = np.argsort(np.abs(f.ys - q[1]))[:3]
-        cand = [(float(np.hypot(f.xs[i] - q[0], f.ys[j] - q[1])), ks, j, i)
-                for i in ix for j in iy]
-        cand.sort()
-        out = []
-        for _, kk, j, i in cand:
-            if f.rho[kk, j, i] > f.tol:
-                out.append(int(np.ravel_multi_index((kk, j, i), self.shape)))
-        return out[:k]
+    def tree(self):
+        """k-d tree over the nodes' (x, y) (built on first use)."""
+        if self._tree is None:
+            self._tree = cKDTree(self.xyz[:, :2] if len(self.xyz) else np.zeros((0, 2)))
+        return self._tree
 
 
-def _dist(model_scale, periodic, a, b):
-    d = np.array(b - a, dtype=float)
-    if periodic:
-        d[..., 2] = (d[..., 2] + np.pi) % (2 * np.pi) - np.pi
-    d[..., 2] *= model_scale
-    return np.sqrt(np.sum(d * d, axis=-1))
+def diagram_slices(model, fields, program='total'):
+    """Exact diagram pieces of every slice in ``fields``, as :class:`DiagramSlice` graphs.
 
-
-def build_roadmap(fields, periodic, phi_scale):
-    """Diagram vertices, retraction and witnessed roadmap edges for ``fields``."""
+    Nodes: on every grid edge joining two free vertices of one singularity cell whose active
+    leaves ``a`` and ``b`` differ, the point where ``L_a = L_b`` (both leaves are affine along
+    the edge, so the tie point is exact), kept when rho there is free. Within one grid cell
+    the diagram is the straight tie line: two tie points in a cell are joined directly; three
+    or more meet at a junction node (their mean), joined to each - the pieces
+    :func:`tie_segments` draws.
+    """
+    prog = model.programs[program]
+    key_of = np.array([k for k, _ in prog.leaves])
+    sign_of = np.array([s for _, s in prog.leaves], dtype=float)
+    n_leaves = len(prog.leaves)
+    A, B, C = affine_coefficients(model, fields.phis, program)
     rho, active, cell = fields.rho, fields.active, fields.cell
-    shape = rho.shape
-    n = int(np.prod(shape))
     free = fields.free
-    idx = np.arange(n, dtype=np.int64).reshape(shape)
-    node = diagram_mask(rho, active, cell, fields.tol)
-
-    # Steepest ascent over the 8-neighbours of the slice, within the same singularity cell.
-    best = np.where(free, rho, -np.inf)
-    succ = idx.copy()
-    for dy, dx in _ALL8:
+    xs, ys = fields.xs, fields.ys
+    shape = rho.shape
+    nphi, ny, nx = shape
+    ids = {}
+    parts = []          # (k, x, y, pair) per edge direction
+    for dy, dx in ((0, 1), (1, 0)):
         a, b = _shifted_pairs(shape, dy, dx)
-        ok = free[b] & (cell[b] == cell[a]) & (rho[b] > best[a])
-        best_a = best[a]
-        succ_a = succ[a]
-        np.copyto(best_a, rho[b], where=ok)
-        np.copyto(succ_a, idx[b], where=ok)
-        best[a] = best_a
-        succ[a] = succ_a
-    local_max = free & (succ == idx)
-    node |= local_max
-    succ = np.where(node | ~free, idx, succ).ravel()
-    root = succ.copy()
-    while True:
-        nxt = root[root]
-        if np.array_equal(nxt, root):
-            break
-        root = nxt
-    root3 = root.reshape(shape)
+        cand = free[a] & free[b] & (cell[a] == cell[b]) & (active[a] != active[b])
+        k, j, i = np.nonzero(cand)
+        la, lb = active[k, j, i], active[k, j + dy, i + dx]
+        xu, yu, xv, yv = xs[i], ys[j], xs[i + dx], ys[j + dy]
 
-    us, vs = [], []
+        def leaf(lf, x, y):
+            key = key_of[lf]
+            return sign_of[lf] * (A[k, key] + B[k, key] * x + C[k, key] * y)
 
-    def add(a_sl, b_sl):
-        ok = free[a_sl] & free[b_sl] & (cell[a_sl] == cell[b_sl]) \
-            & (root3[a_sl] != root3[b_sl])
-        us.append(idx[a_sl][ok])
-        vs.append(idx[b_sl][ok])
+        du = leaf(la, xu, yu) - leaf(lb, xu, yu)
+        dv = leaf(la, xv, yv) - leaf(lb, xv, yv)
+        den = du - dv
+        t = np.clip(np.divide(du, den, out=np.full_like(du, 0.5), where=den != 0), 0.0, 1.0)
+        parts.append((k, j, i, xu + t * (xv - xu), yu + t * (yv - yu),
+                      np.minimum(la, lb) * n_leaves + np.maximum(la, lb)))
+        ids[(dy, dx)] = np.full((nphi, ny - dy, nx - dx), -1, dtype=np.int64)
+    k = np.concatenate([p[0] for p in parts])
+    px = np.concatenate([p[3] for p in parts])
+    py = np.concatenate([p[4] for p in parts])
+    pair = np.concatenate([p[5] for p in parts])
+    q = np.stack([px, py, fields.phis[k]], axis=1)
+    node_rho = model.rho(q, program) if len(q) else np.zeros(0)
+    keep = node_rho > fields.tol
+    gid = np.cumsum(keep) - 1
+    start = 0
+    for (dy, dx), p in zip(((0, 1), (1, 0)), parts):
+        n = len(p[0])
+        sel = keep[start:start + n]
+        ids[(dy, dx)][p[0][sel], p[1][sel], p[2][sel]] = gid[start:start + n][sel]
+        start += n
+    k, q, pair, node_rho = k[keep], q[keep], pair[keep], node_rho[keep]
+    H, V = ids[(0, 1)], ids[(1, 0)]
+    sides = np.stack([H[:, :-1, :], H[:, 1:, :], V[:, :, :-1], V[:, :, 1:]])  # per cell
+    count = np.sum(sides >= 0, axis=0)
+    eu, ev = [], []
+    two = count == 2
+    for s1 in range(4):
+        for s2 in range(s1 + 1, 4):
+            ok = two & (sides[s1] >= 0) & (sides[s2] >= 0)
+            eu.append(sides[s1][ok])
+            ev.append(sides[s2][ok])
+    # Junctions: cells where three or more tie lines enter.
+    jk, jj, ji = np.nonzero(count >= 3)
+    n_nodes = len(q)
+    if len(jk):
+        members = sides[:, jk, jj, ji]                        # (4, nj)
+        has = members >= 0
+        safe = np.where(has, members, 0)
+        centre = np.sum(np.where(has[..., None], q[safe], 0.0), axis=0) / has.sum(0)[:, None]
+        c_rho = model.rho(centre, program)
+        ok = c_rho > fields.tol
+        cid = n_nodes + np.cumsum(ok) - 1
+        for s in range(4):
+            sel = ok & has[s]
+            eu.append(members[s][sel])
+            ev.append(cid[sel])
+        k = np.r_[k, jk[ok]]
+        q = np.vstack([q, centre[ok]])
+        pair = np.r_[pair, np.full(int(ok.sum()), -1)]
+        node_rho = np.r_[node_rho, c_rho[ok]]
+    eu, ev = np.concatenate(eu), np.concatenate(ev)
+    order = np.argsort(k, kind='stable')
+    local = np.empty(len(k), dtype=np.int64)
+    bounds = np.searchsorted(k[order], np.arange(nphi + 1))
+    for s in range(nphi):
+        local[order[bounds[s]:bounds[s + 1]]] = np.arange(bounds[s + 1] - bounds[s])
+    edge_slice = k[eu] if len(eu) else np.zeros(0, dtype=np.int64)
+    out = []
+    for s in range(nphi):
+        nodes = order[bounds[s]:bounds[s + 1]]
+        sel = edge_slice == s
+        out.append(DiagramSlice(float(fields.phis[s]), q[nodes], pair[nodes], node_rho[nodes],
+                                np.stack([local[eu[sel]], local[ev[sel]]], axis=1)))
+    return out
 
-    for dy, dx in _HALF8:
-        add(*_shifted_pairs(shape, dy, dx))
-    nphi = shape[0]
-    if nphi > 1:
-        add((slice(0, nphi - 1),), (slice(1, nphi),))
-        if periodic:
-            add((slice(nphi - 1, nphi),), (slice(0, 1),))
-    u = np.concatenate(us)
-    v = np.concatenate(vs)
-    # Compact ids of the diagram vertices keep the pair key small enough to carry the
-    # clearance in its low bits: one integer sort orders witnesses by pair, best first.
-    node_flat = np.flatnonzero(node.ravel())
-    compact = np.full(n, -1, dtype=np.int64)
-    compact[node_flat] = np.arange(len(node_flat))
-    cu, cv = compact[root[u]], compact[root[v]]
-    flat_rho = rho.ravel()
-    clear = np.minimum(flat_rho[u], flat_rho[v])
-    lo, hi = np.minimum(cu, cv), np.maximum(cu, cv)
-    m_nodes = max(len(node_flat), 1)
-    key = lo * m_nodes + hi
-    bits = 62 - int(np.ceil(np.log2(float(m_nodes) ** 2 + 1)))
-    if bits >= 12 and len(clear):
-        top = float(clear.max()) or 1.0
-        rank = ((1.0 - clear / top) * (2 ** bits - 1)).astype(np.int64)
-        order = np.argsort((key << bits) | rank, kind='stable')
-    else:
-        order = np.lexsort((-clear, key))
-    key, u, v, clear = key[order], u[order], v[order], clear[order]
-    # Orient every witness as (side of lo, side of hi).
-    flip = compact[root[u]] != key // m_nodes
-    u2 = np.where(flip, v, u)
-    v2 = np.where(flip, u, v)
-    starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
-    pkey = key[starts]
-    return Roadmap(fields=fields, periodic=periodic, phi_scale=phi_scale,
-                   node_mask=node, succ=succ, root=root,
-                   pair_lo=node_flat[pkey // m_nodes], pair_hi=node_flat[pkey % m_nodes],
-                   pair_start=np.r_[starts, len(key)],
-                   wit_u=u2, wit_v=v2, wit_clearance=clear)
+
+def link_slices(lower, upper, radius):
+    """Links between the diagram vertices of two consecutive slices: each node joins the
+    nearest node of the same leaf pair (the same diagram sheet, moved by the rotation) and the
+    two nearest nodes of any pair in the other slice, within ``radius`` in (x, y). Returns
+    ``(m, 2)`` pairs of (lower id, upper id)."""
+    out = []
+    if not len(lower.xyz) or not len(upper.xyz):
+        return np.zeros((0, 2), dtype=np.int64)
+    big = 1e3 * (radius + 1.0)
+    for a, b, flip in ((lower, upper, False), (upper, lower, True)):
+        tb = cKDTree(np.c_[b.xyz[:, :2], big * b.pair])
+        _, j = tb.query(np.c_[a.xyz[:, :2], big * a.pair], k=1, distance_upper_bound=radius)
+        ok = j < len(b.xyz)
+        pairs = [np.stack([np.flatnonzero(ok), j[ok]], axis=1)]
+        kk = min(2, len(b.xyz))
+        _, j = b.tree.query(a.xyz[:, :2], k=kk, distance_upper_bound=radius)
+        j = j.reshape(len(a.xyz), kk)
+        for c in range(kk):
+            ok = j[:, c] < len(b.xyz)
+            pairs.append(np.stack([np.flatnonzero(ok), j[ok, c]], axis=1))
+        p = np.vstack(pairs)
+        out.append(p[:, ::-1] if flip else p)
+    links = np.vstack(out)
+    code = np.unique(links[:, 0] * len(upper.xyz) + links[:, 1])
+    return np.stack([code // len(upper.xyz), code % len(upper.xyz)], axis=1)

@@ -29,13 +29,19 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import breadth_first_order, dijkstra, minimum_spanning_tree
+from scipy.sparse.csgraph import dijkstra
 
 from paramotion.errors import UserError
-from paramotion.voronoi.diagram import build_roadmap, grid_axes, slice_fields
+from paramotion.voronoi.diagram import (
+    affine_coefficients,
+    diagram_slices,
+    grid_axes,
+    link_slices,
+    slice_fields,
+)
 
-__all__ = ['MAX_GRID_VERTICES', 'PlanResult', 'VoronoiPlanner', 'check_path', 'densify',
-           'validate_configuration']
+__all__ = ['KIND_NAMES', 'MAX_GRID_VERTICES', 'PlanResult', 'VoronoiPlanner', 'check_path',
+           'densify', 'diagram_segments', 'validate_configuration']
 
 #: Largest sampled grid accepted (about 1.5 GB of roadmap arrays).
 MAX_GRID_VERTICES = 12_000_000
@@ -54,6 +60,12 @@ class PlanResult:
     max_rho_step: float = float('nan')
     planning_time: float = 0.0
     stats: dict = field(default_factory=dict)
+    #: Length share of the path on diagram edges (phi weighted by the planner's phi_scale).
+    on_diagram_fraction: float = float('nan')
+    #: Kind of each waypoint segment (see ``KIND_NAMES``).
+    segment_kinds: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    #: Clearance profile: ``(M, 2)`` of (arc length, rho) at every dense path sample.
+    clearance: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
 
     @property
     def found(self):
@@ -127,17 +139,36 @@ def validate_configuration(model, q, name):
                         f'free: {what}')
 
 
-class VoronoiPlanner:
-    """Planner on the sampled simplified Voronoi diagram of a planar model.
+# Kinds of path pieces, for on_diagram_fraction.
+RETRACTION, SLICE_PIECE, SLICE_LINK, ATTACH, OFF_ATTACH = 0, 1, 2, 3, 4
+_ON_DIAGRAM = (SLICE_PIECE, SLICE_LINK, ATTACH)
+KIND_NAMES = {RETRACTION: 'retraction', SLICE_PIECE: 'diagram piece (in slice)',
+              SLICE_LINK: 'diagram link (between slices)', ATTACH: 'diagram piece (attach)',
+              OFF_ATTACH: 'off-diagram attach'}
 
-    ``h``: grid spacing in x, y (units); ``dphi_deg``: slice spacing; ``check_step`` and
-    ``check_dphi``: dense checking resolution; ``phi_scale``: length per radian in edge costs
-    (default: the platform length). The uniform slices are computed once and reused by every
-    query (a node serves many requests).
+
+def diagram_segments(result):
+    """The diagram edges a found path used, ``(m, 2, 3)`` pairs of configurations."""
+    if not result.found:
+        return np.zeros((0, 2, 3))
+    w = result.waypoints
+    on = np.isin(result.segment_kinds, _ON_DIAGRAM)
+    return np.stack([w[:-1][on], w[1:][on]], axis=1)
+
+
+class VoronoiPlanner:
+    """Planner on the simplified Voronoi diagram of a planar model (see the module docs).
+
+    ``h``: grid spacing in x, y (units) on which the diagram's tie points are found;
+    ``dphi_deg``: slice spacing; ``check_step`` and ``check_dphi``: dense checking resolution;
+    ``phi_scale``: length per radian in edge costs (default: the platform length);
+    ``link_radius``: largest (x, y) distance of a link between diagram vertices of
+    consecutive slices (default 2 h). Diagram slices are computed lazily, only where the
+    search needs them, and cached for later queries (a node serves many requests).
     """
 
     def __init__(self, model, h=1.0, dphi_deg=2.5, check_step=0.05, check_dphi=0.01,
-                 phi_scale=None, clearance_fraction=0.5, max_iterations=500):
+                 phi_scale=None, link_radius=None, max_iterations=500):
         if not (h > 0 and dphi_deg > 0 and check_step > 0 and check_dphi > 0):
             raise UserError('planner resolutions must be positive')
         self.model = model
@@ -145,9 +176,9 @@ class VoronoiPlanner:
         self.check_step = float(check_step)
         self.check_dphi = float(check_dphi)
         self.max_iterations = int(max_iterations)
-        self.clearance_fraction = float(clearance_fraction)
         lengths = [np.linalg.norm(p) for p in model.moving.values()]
         self.phi_scale = float(phi_scale if phi_scale is not None else max(lengths + [1.0]))
+        self.link_radius = float(link_radius if link_radius is not None else 2.0 * self.h)
         dom = model.domain
         self.xs, self.ys = grid_axes(dom, self.h)
         span = dom.phi[1] - dom.phi[0]
@@ -157,52 +188,208 @@ class VoronoiPlanner:
         else:
             n = max(2, int(round(span / math.radians(dphi_deg))) + 1)
             self.phis = np.linspace(dom.phi[0], dom.phi[1], n)
+        self.dphi = float(self.phis[1] - self.phis[0])
         size = len(self.xs) * len(self.ys) * (len(self.phis) + 2)
         if size > MAX_GRID_VERTICES:
             raise UserError(f'grid of {size:,} vertices (spacing {self.h:g}, slices '
                             f'{dphi_deg:g} deg) exceeds {MAX_GRID_VERTICES:,}; use a coarser '
                             'grid or fewer slices')
         self._fields = None
+        self._slices = {}
 
     @property
     def base_fields(self):
-        """Fields of the uniform slices (computed on first use)."""
+        """rho, active leaf and cell on the uniform slices' grid (computed on first use)."""
         if self._fields is None:
             self._fields = slice_fields(self.model, self.phis, self.xs, self.ys)
         return self._fields
 
-    def _slice_phi(self, phi):
+    def prepare(self):
+        """Compute and cache the diagram of every uniform slice (e.g. at node start-up)."""
+        self._uniform(range(len(self.phis)))
+
+    def _uniform(self, ks):
+        ks = list(ks)
+        missing = [k for k in ks if k not in self._slices]
+        for part in range(0, len(missing), 24):
+            chunk = missing[part:part + 24]
+            f = slice_fields(self.model, self.phis[chunk], self.xs, self.ys)
+            for k, sl in zip(chunk, diagram_slices(self.model, f)):
+                self._slices[k] = sl
+        return [self._slices[k] for k in ks]
+
+    def _slice_at(self, phi):
+        """Diagram slice at orientation ``phi``: a cached uniform one if it coincides."""
+        d = np.abs(_wrap(self.phis - phi)) if self.model.domain.periodic \
+            else np.abs(self.phis - phi)
+        k = int(np.argmin(d))
+        if d[k] < 1e-9:
+            return k, self._uniform([k])[0]
+        f = slice_fields(self.model, np.array([phi]), self.xs, self.ys)
+        return None, diagram_slices(self.model, f)[0]
+
+    def _window(self, phi_s, phi_g, full):
+        """Uniform slice indices searched, in order along phi, and the ordering key."""
         dom = self.model.domain
-        if dom.periodic:
-            return dom.phi[0] + (phi - dom.phi[0]) % (2 * math.pi)
-        return phi
+        n = len(self.phis)
+        margin = 2 * self.dphi
+        if not dom.periodic:
+            if full:
+                return list(range(n)), (lambda p: p)
+            lo, hi = min(phi_s, phi_g) - margin, max(phi_s, phi_g) + margin
+            return [k for k in range(n) if lo <= self.phis[k] <= hi], (lambda p: p)
+        if full:
+            return list(range(n)), (lambda p: (p - dom.phi[0]) % (2 * math.pi))
+        d = float(_wrap(phi_g - phi_s))
+        lo = (phi_s if d >= 0 else phi_g) - margin
+        span = abs(d) + 2 * margin
 
-    def _fields_with(self, extra):
-        """Uniform fields plus slices at the ``extra`` orientations, sorted by phi."""
-        base = self.base_fields
-        extra = sorted({float(self._slice_phi(p)) for p in extra})
-        extra = [p for p in extra if np.min(np.abs(_wrap(base.phis - p))) > 1e-9]
-        if not extra:
-            return base
-        more = slice_fields(self.model, np.array(extra), self.xs, self.ys)
-        phis = np.r_[base.phis, more.phis]
-        order = np.argsort(phis, kind='stable')
-        cat = {name: np.concatenate([getattr(base, name), getattr(more, name)])[order]
-               for name in ('rho', 'active', 'cell')}
-        return type(base)(phis[order], self.xs, self.ys, cat['rho'], cat['active'],
-                          cat['cell'], base.tol)
+        def key(p):
+            return (p - lo) % (2 * math.pi)
 
-    def _connect(self, roadmap, q):
-        """Retract ``q`` onto the diagram: a verified straight move to a nearby free grid
-        vertex of its own slice, then that vertex's steepest-ascent chain. Returns
-        ``(root, waypoints from q to the root)`` or ``(None, None)``."""
-        for c in roadmap.nearest_vertices(q, k=9):
-            chain = roadmap.chain(c)
-            pts = unwrap_phi(np.vstack([q[None, :], roadmap.position(chain)]))
-            ok = check_path(self.model, pts, self.check_step, self.check_dphi)[0]
-            if ok:
-                return chain[-1], pts
-        return None, None
+        ks = [k for k in range(n) if key(self.phis[k]) <= span]
+        return sorted(ks, key=lambda k: key(self.phis[k])), key
+
+    # -- retraction ----------------------------------------------------------------------------
+    def retract(self, q):
+        """Climb rho from ``q`` within its slice onto the diagram.
+
+        In a slice every leaf is affine, so rho increases fastest along the gradient of the
+        active leaf; the straight climb ends exactly where another leaf becomes active (found
+        by bisection): a point of the simplified Voronoi diagram. At the domain's edge the
+        climb slides along it. Returns ``(chain (m, 3) from q, on_diagram)``; rho increases
+        along the chain, so it moves away from the obstacles.
+        """
+        model = self.model
+        prog = model.programs['total']
+        key_of = [k for k, _ in prog.leaves]
+        sign_of = [s for _, s in prog.leaves]
+        A, B, C = affine_coefficients(model, [q[2]])
+        dom = model.domain
+        lo = np.array([dom.x[0], dom.y[0]])
+        hi = np.array([dom.x[1], dom.y[1]])
+        eps = 1e-9 * float(np.max(hi - lo))
+        p = np.array(q[:2], dtype=float)
+        chain = [np.array(q, dtype=float)]
+
+        def active(pts):
+            pts = np.atleast_2d(pts)
+            return model.evaluate(np.c_[pts, np.full(len(pts), q[2])])[1]
+
+        for _ in range(64):
+            leaf = int(active(p)[0])
+            g = sign_of[leaf] * np.array([B[0, key_of[leaf]], C[0, key_of[leaf]]])
+            for ax in range(2):
+                if (p[ax] <= lo[ax] + eps and g[ax] < 0) or (p[ax] >= hi[ax] - eps and g[ax] > 0):
+                    g[ax] = 0.0
+            norm = float(np.hypot(*g))
+            if norm <= 1e-12 * (abs(A[0, key_of[leaf]]) + 1.0):
+                return np.array(chain), False
+            d = g / norm
+            with np.errstate(divide='ignore', invalid='ignore'):
+                lim = np.where(d > 0, (hi - p) / d, np.where(d < 0, (lo - p) / d, np.inf))
+            tmax = float(max(0.0, np.min(lim)))
+            if tmax <= eps:
+                return np.array(chain), False
+            ts = np.linspace(0.0, tmax, max(2, int(math.ceil(tmax / (self.h / 4)))) + 1)[1:]
+            other = np.flatnonzero(active(p + ts[:, None] * d) != leaf)
+            if not len(other):
+                p = np.clip(p + tmax * d, lo, hi)
+                chain.append(np.r_[p, q[2]])
+                continue
+            t_lo = ts[other[0] - 1] if other[0] > 0 else 0.0
+            t_hi = ts[other[0]]
+            for _ in range(60):
+                mid = 0.5 * (t_lo + t_hi)
+                if active(p + mid * d)[0] == leaf:
+                    t_lo = mid
+                else:
+                    t_hi = mid
+            p = p + t_lo * d
+            chain.append(np.r_[p, q[2]])
+            return np.array(chain), True
+        return np.array(chain), False
+
+    # -- search --------------------------------------------------------------------------------
+    def _graph(self, slices, periodic_ring, ends):
+        """Global node positions, rho and deduplicated edges (u, v, kind) of the diagram
+        graph over ``slices`` (ordered along phi) plus the two retraction ends."""
+        offs = np.cumsum([0] + [len(s.xyz) for s in slices])
+        xyz = np.vstack([s.xyz for s in slices] + [np.zeros((0, 3))])
+        us, vs, kinds = [], [], []
+        for i, s in enumerate(slices):
+            us.append(s.edges[:, 0] + offs[i])
+            vs.append(s.edges[:, 1] + offs[i])
+            kinds.append(np.full(len(s.edges), SLICE_PIECE))
+        pairs = list(zip(range(len(slices) - 1), range(1, len(slices))))
+        if periodic_ring and len(slices) > 2:
+            pairs.append((len(slices) - 1, 0))
+        for a, b in pairs:
+            lk = link_slices(slices[a], slices[b], self.link_radius)
+            us.append(lk[:, 0] + offs[a])
+            vs.append(lk[:, 1] + offs[b])
+            kinds.append(np.full(len(lk), SLICE_LINK))
+        end_ids = []
+        for slice_index, p, on in ends:
+            nid = len(xyz)
+            xyz = np.vstack([xyz, p[None, :]])
+            end_ids.append(nid)
+            s = slices[slice_index]
+            near = []
+            for r in (1.5 * self.h, 3 * self.h, 6 * self.h):
+                near = s.tree.query_ball_point(p[:2], r)
+                if near:
+                    break
+            near = np.asarray(near, dtype=np.int64)
+            us.append(np.full(len(near), nid))
+            vs.append(near + offs[slice_index])
+            kinds.append(np.full(len(near), ATTACH if on else OFF_ATTACH))
+        u, v, kind = np.concatenate(us), np.concatenate(vs), np.concatenate(kinds)
+        n = len(xyz)
+        lo_, hi_ = np.minimum(u, v), np.maximum(u, v)
+        code, first = np.unique(lo_ * n + hi_, return_index=True)
+        keep = lo_[first] != hi_[first]
+        u, v, kind = lo_[first][keep], hi_[first][keep], kind[first][keep]
+        d = xyz[v] - xyz[u]
+        d[:, 2] = _wrap(d[:, 2]) * self.phi_scale
+        cost = np.maximum(np.sqrt(np.sum(d * d, axis=1)), 1e-9)
+        return xyz, u, v, kind, cost, end_ids
+
+    def _search(self, xyz, u, v, kind, cost, s_id, g_id, stats):
+        """Lazy Dijkstra: shortest path on the diagram graph whose edges all pass dense
+        checking. Returns (node sequence, edge kinds) or None."""
+        n = len(xyz)
+        alive = np.ones(len(u), dtype=bool)
+        verified = np.zeros(len(u), dtype=bool)
+        edge_of = csr_matrix((np.r_[np.arange(len(u)), np.arange(len(u))] + 1,
+                              (np.r_[u, v], np.r_[v, u])), shape=(n, n))
+        for _ in range(self.max_iterations):
+            stats['search_iterations'] = stats.get('search_iterations', 0) + 1
+            e = np.flatnonzero(alive)
+            graph = csr_matrix((np.r_[cost[e], cost[e]], (np.r_[u[e], v[e]], np.r_[v[e], u[e]])),
+                               shape=(n, n))
+            _, pred = dijkstra(graph, directed=True, indices=s_id, return_predecessors=True)
+            if s_id != g_id and pred[g_id] < 0:
+                return None
+            seq = [g_id]
+            while seq[-1] != s_id:
+                seq.append(int(pred[seq[-1]]))
+            seq = seq[::-1]
+            edges = np.array([int(edge_of[a, b]) - 1 for a, b in zip(seq[:-1], seq[1:])],
+                             dtype=np.int64)
+            todo = edges[~verified[edges]]
+            if len(todo):
+                a = xyz[u[todo]]
+                b = xyz[v[todo]].copy()
+                b[:, 2] = a[:, 2] + _wrap(b[:, 2] - a[:, 2])
+                bad = self._bad_segments(a, b)
+                verified[todo] = True
+                if len(bad):
+                    alive[todo[bad]] = False
+                    stats['rejected_edges'] = stats.get('rejected_edges', 0) + len(bad)
+                    continue
+            return seq, kind[edges]
+        raise RuntimeError('lazy search did not converge; raise max_iterations')
 
     def plan(self, start, goal, progress=None):
         """Plan from ``start`` to ``goal`` (each ``(x, y, phi_rad)``); see the module docs.
@@ -232,136 +419,71 @@ class VoronoiPlanner:
                           f'{det} is {s_sign[i]:+.0f} at the start and {g_sign[i]:+.0f} at '
                           f'the goal, so every path crosses the singularity {det} = 0')
 
-        tick('slices')
-        fields = self._fields_with([start[2], goal[2]])
-        tick('roadmap')
-        rm = build_roadmap(fields, model.domain.periodic, self.phi_scale)
-        n = rm.n_vertices
-        stats.update(slices=int(len(fields.phis)), grid_vertices=n,
-                     free_vertices=int(np.count_nonzero(fields.free)),
-                     diagram_vertices=int(np.count_nonzero(rm.node_mask)),
-                     roadmap_edges=int(len(rm.pair_lo)))
         tick('retract')
-        s_root, s_pts = self._connect(rm, start)
-        g_root, g_pts = self._connect(rm, goal)
-        for name, root in (('start', s_root), ('goal', g_root)):
-            if root is None:
-                raise UserError(f'{name} is free but too close to an obstacle to reach the '
-                                f'sampling grid (spacing {self.h:g}); use a finer grid')
-        tick('search')
-        nodes, inv = np.unique(np.r_[rm.pair_lo, rm.pair_hi, s_root, g_root],
-                               return_inverse=True)
-        m = len(rm.pair_lo)
-        lo_id, hi_id = inv[:m], inv[m:2 * m]
-        s_id, g_id = inv[2 * m], inv[2 * m + 1]
-        edge_of = csr_matrix((np.r_[np.arange(m), np.arange(m)] + 1,
-                              (np.r_[lo_id, hi_id], np.r_[hi_id, lo_id])),
-                             shape=(len(nodes), len(nodes)))
-        ptr = rm.pair_start[:-1].copy()
-        alive = np.ones(m, dtype=bool)
-        verified = np.zeros(m, dtype=bool)
-        cost = np.maximum(rm.witness_cost(ptr), 1e-9)
-        clear = rm.wit_clearance[ptr].copy()
-        bottleneck = self._bottleneck(len(nodes), lo_id, hi_id, clear, s_id, g_id)
-        stats['bottleneck_rho'] = bottleneck
-        rejected, iterations = 0, 0
-        middle = None
-        if s_root == g_root:
-            middle = []
-        # First search among edges keeping at least clearance_fraction of the best achievable
-        # clearance (the maximin value on the diagram); then, if lazy checking removed too
-        # much, among all edges: the threshold never costs completeness.
-        thresholds = [self.clearance_fraction * bottleneck, 0.0] if bottleneck > 0 else []
-        for tau in thresholds:
-            while middle is None and iterations < self.max_iterations:
-                iterations += 1
-                e = np.flatnonzero(alive & (clear >= tau))
-                graph = csr_matrix((np.r_[cost[e], cost[e]],
-                                    (np.r_[lo_id[e], hi_id[e]], np.r_[hi_id[e], lo_id[e]])),
-                                   shape=(len(nodes), len(nodes)))
-                _, pred = dijkstra(graph, directed=True, indices=s_id,
-                                   return_predecessors=True)
-                if pred[g_id] < 0:
-                    break
-                seq = [g_id]
-                while seq[-1] != s_id:
-                    seq.append(pred[seq[-1]])
-                seq = seq[::-1]
-                pieces, edges = [], []
-                for a, b in zip(seq[:-1], seq[1:]):
-                    ei = int(edge_of[a, b]) - 1
-                    u, v = rm.wit_u[ptr[ei]], rm.wit_v[ptr[ei]]
-                    if nodes[a] != rm.pair_lo[ei]:
-                        u, v = v, u
-                    verts = rm.chain(u)[::-1] + rm.chain(v)
-                    pieces.append(unwrap_phi(rm.position(verts)))
-                    edges.append(ei)
-                todo = [i for i, ei in enumerate(edges) if not verified[ei]]
-                failed = []
-                if todo:
-                    # Check all unverified edges at once, then map bad segments back.
-                    bounds = np.cumsum([0] + [len(pieces[i]) - 1 for i in todo])
-                    bad = self._bad_segments(np.vstack([pieces[i][:-1] for i in todo]),
-                                             np.vstack([pieces[i][1:] for i in todo]))
-                    owner = np.searchsorted(bounds, bad, side='right') - 1
-                    failed = sorted({todo[o] for o in owner})
-                    verified[[edges[i] for i in todo]] = True
-                if not failed:
-                    middle = pieces
-                    break
-                for i in failed:
-                    ei = edges[i]
-                    verified[ei] = False
-                    rejected += 1
-                    ptr[ei] += 1
-                    if ptr[ei] >= rm.pair_start[ei + 1]:
-                        alive[ei] = False
-                    else:
-                        cost[ei] = max(float(rm.witness_cost(ptr[ei])), 1e-9)
-                        clear[ei] = rm.wit_clearance[ptr[ei]]
-        stats.update(search_iterations=iterations, rejected_witnesses=rejected)
-        if middle is None:
-            if iterations >= self.max_iterations:
-                raise RuntimeError('lazy search did not converge; raise max_iterations')
-            return result('no_path', 'the start and goal retract to parts of the simplified '
-                          'Voronoi diagram that no verified roadmap edge connects (grid '
-                          f'{self.h:g} units, slices '
-                          f'{math.degrees(2 * math.pi / len(self.phis)):g} deg)')
+        chains = []
+        for name, q in (('start', start), ('goal', goal)):
+            chain, on = self.retract(q)
+            ok = check_path(model, unwrap_phi(chain), self.check_step, self.check_dphi)[0]
+            if not ok:  # rho increases along the climb; failing here is a bug
+                raise RuntimeError(f'{name} retraction failed dense checking')
+            chains.append((chain, on))
+        stats['retraction_on_diagram'] = [bool(chains[0][1]), bool(chains[1][1])]
+        tick('slices')
+        s_k, s_slice = self._slice_at(start[2])
+        g_k, g_slice = self._slice_at(goal[2])
+        found = None
+        for stage, full in enumerate((False, True)):
+            ks, key = self._window(start[2], goal[2], full)
+            entries = [(key(self.phis[k]), k, sl) for k, sl in zip(ks, self._uniform(ks))]
+            for k, sl in ((s_k, s_slice), (g_k, g_slice)):
+                if k is None or k not in ks:
+                    entries.append((key(sl.phi), None, sl))
+            entries.sort(key=lambda e: e[0])
+            slices = []
+            index = {}
+            for e in entries:
+                if id(e[2]) not in index:
+                    index[id(e[2])] = len(slices)
+                    slices.append(e[2])
+            ring = full and model.domain.periodic
+            ends = [(index[id(s_slice)], chains[0][0][-1], chains[0][1]),
+                    (index[id(g_slice)], chains[1][0][-1], chains[1][1])]
+            tick('search')
+            xyz, u, v, kind, cost, (s_id, g_id) = self._graph(slices, ring, ends)
+            stats.update(stage=stage + 1, slices=len(slices), diagram_nodes=len(xyz) - 2,
+                         diagram_edges=int(np.count_nonzero(kind != OFF_ATTACH)))
+            found = self._search(xyz, u, v, kind, cost, s_id, g_id, stats)
+            if found is not None:
+                break
+        if found is None:
+            return result('no_path', 'start and goal retract onto parts of the simplified '
+                          'Voronoi diagram that no verified diagram edge connects (diagram '
+                          f'sampled on a {self.h:g}-unit grid in slices '
+                          f'{math.degrees(self.dphi):g} deg apart)')
         tick('verify')
-        way = [s_pts] + [p[1:] for p in middle] + [g_pts[::-1][1:]]
-        way = unwrap_phi(np.vstack(way))
-        keep = np.r_[True, np.any(np.abs(np.diff(way, axis=0)) > 1e-12, axis=1)]
-        way = way[keep]
-        ok, min_rho, bad, samples, rho = check_path(model, way, self.check_step, self.check_dphi)
+        seq, kinds = found
+        s_chain, g_chain = chains[0][0], chains[1][0][::-1]
+        way = np.vstack([s_chain, xyz[seq[1:-1]], g_chain])
+        seg_kind = np.r_[np.full(len(s_chain) - 1, RETRACTION), kinds,
+                         np.full(len(g_chain) - 1, RETRACTION)]
+        way = unwrap_phi(way)
+        ok, min_rho, bad, samples, rho = check_path(model, way, self.check_step,
+                                                    self.check_dphi)
         if not ok:  # every piece was verified; reaching this is a bug, not a no-path answer
             raise RuntimeError(f'assembled path failed dense checking at segments {bad[:5]}')
+        d = np.diff(way, axis=0)
+        seg_len = np.sqrt(d[:, 0] ** 2 + d[:, 1] ** 2 + (self.phi_scale * d[:, 2]) ** 2)
+        total = float(seg_len.sum())
+        on = float(seg_len[np.isin(seg_kind, _ON_DIAGRAM)].sum())
+        stats['length_by_kind'] = {KIND_NAMES[k]: float(seg_len[seg_kind == k].sum())
+                                   for k in KIND_NAMES if np.any(seg_kind == k)}
+        ds = np.diff(samples, axis=0)
+        arc = np.r_[0.0, np.cumsum(np.sqrt(ds[:, 0] ** 2 + ds[:, 1] ** 2
+                                           + (self.phi_scale * ds[:, 2]) ** 2))]
         return result('ok', path=samples, waypoints=way, min_rho=min_rho,
-                      max_rho_step=float(np.max(np.abs(np.diff(rho)))) if len(rho) > 1 else 0.0)
-
-    @staticmethod
-    def _bottleneck(n_nodes, lo_id, hi_id, clear, s_id, g_id):
-        """Largest clearance c such that edges of clearance >= c connect start and goal (the
-        maximin path lies on a maximum spanning tree); 0 if they are not connected."""
-        if s_id == g_id:
-            return float('inf')
-        if len(clear) == 0:
-            return 0.0
-        top = float(clear.max())
-        weight = (top - clear) + 1.0   # positive: csgraph drops zero weights
-        graph = csr_matrix((weight, (lo_id, hi_id)), shape=(n_nodes, n_nodes))
-        tree = minimum_spanning_tree(graph)
-        order, pred = breadth_first_order(tree, s_id, directed=False,
-                                          return_predecessors=True)
-        if g_id != s_id and pred[g_id] < 0:
-            return 0.0
-        sym = (tree + tree.T).tocsr()
-        worst = float('inf')
-        node = g_id
-        while node != s_id:
-            p = pred[node]
-            worst = min(worst, top + 1.0 - sym[p, node])
-            node = p
-        return worst
+                      max_rho_step=float(np.max(np.abs(np.diff(rho)))) if len(rho) > 1 else 0.0,
+                      on_diagram_fraction=on / total if total > 0 else 1.0,
+                      segment_kinds=seg_kind, clearance=np.c_[arc, rho])
 
     def _bad_segments(self, a, b):
         """Indices of the straight segments a[i] -> b[i] that fail dense checking."""

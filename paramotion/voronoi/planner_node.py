@@ -10,7 +10,8 @@ A thin adapter around :class:`paramotion.voronoi.planner.VoronoiPlanner`:
   ``/voronoi/status``);
 * ``/voronoi/path`` (nav_msgs/Path, latched): the last plan found;
 * ``/voronoi/diagram`` (visualization_msgs/MarkerArray, latched): the scene (base, boundary,
-  obstacles), the simplified Voronoi diagram slice at ``marker_slice_yaw`` and the last path;
+  obstacles), the simplified Voronoi diagram slice at ``marker_slice_yaw``, the last path and
+  the diagram edges it used (namespace ``diagram_used``);
 * ``/voronoi/status`` (diagnostic_msgs/DiagnosticArray, latched): outcome of the last request.
 
 Scene units are metres in the messages; frames follow REP 105 (``frame_id``, default map).
@@ -30,7 +31,7 @@ from paramotion.node import Param, ParamotionNode, run_node
 from paramotion.qos import LATCHED_QOS
 from paramotion.voronoi.diagram import grid_axes, tie_segments
 from paramotion.voronoi.planar import load_scene, paper_model
-from paramotion.voronoi.planner import VoronoiPlanner
+from paramotion.voronoi.planner import VoronoiPlanner, diagram_segments
 
 
 def yaw_from_quaternion(q):
@@ -70,6 +71,7 @@ class VoronoiPlannerNode(ParamotionNode):
             raise ParameterError(f'{node_name}: {reason}')
         self.planner = None
         self.last_path = None
+        self.last_used = None
         self.requests = 0
         self.path_pub = self.create_publisher(Path, '/voronoi/path', LATCHED_QOS)
         self.marker_pub = self.create_publisher(MarkerArray, '/voronoi/diagram', LATCHED_QOS)
@@ -98,7 +100,7 @@ class VoronoiPlannerNode(ParamotionNode):
     def _rebuild(self):
         self.planner = VoronoiPlanner(self.model, h=self.params.grid_spacing,
                                       dphi_deg=self.params.slice_step_deg)
-        self.planner.base_fields   # build the slices now, not in the first request
+        self.planner.prepare()   # build the diagram slices now, not in the first request
 
     # -- service ---------------------------------------------------------------------------
     def _on_get_plan(self, request, response):
@@ -132,6 +134,8 @@ class VoronoiPlannerNode(ParamotionNode):
             pose.pose.orientation.w = math.cos(yaw / 2)
             response.plan.poses.append(pose)
         self.last_path = result.path
+        self.last_used = diagram_segments(result)
+        info['on_diagram_fraction'] = result.on_diagram_fraction
         self.path_pub.publish(response.plan)
         self._publish_markers()
         self._status(DiagnosticStatus.OK, 'path found', info)
@@ -182,6 +186,11 @@ class VoronoiPlannerNode(ParamotionNode):
         if self.last_path is not None and len(self.last_path) > 1:
             arr.markers.append(self._line_marker('path', 0, Marker.LINE_STRIP,
                                                  self.last_path[:, :2], (0.9, 0.1, 0.1), 0.3))
+        if self.last_used is not None and len(self.last_used):
+            # The diagram edges the last path ran along (x, y of both ends, any slice).
+            arr.markers.append(self._line_marker('diagram_used', 0, Marker.LINE_LIST,
+                                                 self.last_used[:, :, :2].reshape(-1, 2),
+                                                 (0.1, 0.8, 0.2), 0.4))
         self.marker_pub.publish(arr)
 
 
