@@ -25,7 +25,6 @@ def robot_size_config(radius=0.25, overlap=0.2, **overrides):
         lap_spacing=2.0 * radius * (1.0 - overlap),
         trace_tolerance=0.2 * radius,
         lap_tolerance=0.3 * radius,
-        min_piece=0.4 * radius,
     )
     values.update(overrides)
     return PlannerConfig(**values)

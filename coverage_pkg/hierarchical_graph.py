@@ -137,7 +137,7 @@ class HierarchicalGraph:
                 if all(np.hypot(c[0] - e[0], c[1] - e[1]) > merge_radius
                        for e in edge['sensed'] + edge['predicted']):
                     edge[key].append((float(c[0]), float(c[1])))
-        if edge['shared'] is None and shared is not None:
+        if shared is not None:
             edge['shared'] = (float(shared[0]), float(shared[1]))
         return edge
 
@@ -162,6 +162,27 @@ class HierarchicalGraph:
         if not pts:
             return e['shared']
         return min(pts, key=lambda c: np.hypot(c[0] - here[0], c[1] - here[1]))
+
+    def route_crossings(self, hops, here):
+        """The crossing points of a graph route ``hops`` (node ids): one cusp point (or shared
+        boundary point) per edge, chosen together so that the straight-line length
+        ``here -> c1 -> c2 -> ...`` is least (dynamic programming over the edges)."""
+        options = []
+        for a, b in zip(hops[:-1], hops[1:]):
+            e = self.edges.get((a, b)) or self.edges.get((b, a))
+            if e is None:
+                return []
+            pts = e['sensed'] + e['predicted'] or ([e['shared']] if e['shared'] else [])
+            if not pts:
+                return []
+            options.append(pts)
+        if not options:
+            return []
+        best = [(float(np.hypot(p[0] - here[0], p[1] - here[1])), [p]) for p in options[0]]
+        for pts in options[1:]:
+            best = [min(((c + float(np.hypot(p[0] - q[-1][0], p[1] - q[-1][1])), q + [p])
+                         for c, q in best), key=lambda v: v[0]) for p in pts]
+        return min(best, key=lambda v: v[0])[1]
 
     def resolve(self, node_id):
         """The live node standing for ``node_id`` (following merges), or None."""

@@ -33,6 +33,7 @@ class EvidenceGrid:
         self.logodds = np.zeros((n, n), dtype=np.float32)
         self.trace = np.zeros((n, n), dtype=bool)
         self.seen = np.zeros((n, n), dtype=bool)      # ever observed (free or occupied)
+        self.viewed = np.zeros((n, n), dtype=bool)    # passed under the detector (range delta)
         self.version = 0                              # bumped when the grid changes shape
 
     @property
@@ -59,6 +60,7 @@ class EvidenceGrid:
         self.logodds = np.pad(self.logodds, widths)
         self.trace = np.pad(self.trace, widths)
         self.seen = np.pad(self.seen, widths)
+        self.viewed = np.pad(self.viewed, widths)
         self.origin = self.origin - np.array([pad[0], pad[1]]) * self.res
         self.version += 1
 
@@ -108,6 +110,26 @@ class EvidenceGrid:
         cen = self.center(r0[0] + rr, c0[0] + cc)
         inside = np.hypot(cen[..., 0] - x, cen[..., 1] - y) <= radius
         self.trace[(r0[0] + rr)[inside], (c0[0] + cc)[inside]] = True
+
+    def mark_viewed(self, x, y, radius):
+        """Mark the cells the detector of range ``radius`` sees from (x, y): along rays through
+        known free cells, up to and including the first cell that is not known free. Only
+        cells whose centre lies within ``radius - res / 2`` count, so a cell marked viewed is
+        within range as a whole (the grid must not claim more than the detector saw)."""
+        self.ensure(x - radius - 1, y - radius - 1, x + radius + 1, y + radius + 1)
+        reach = radius - self.res
+        n = max(32, int(math.ceil(2 * math.pi * reach / (0.5 * self.res))))
+        th = np.linspace(0.0, 2 * math.pi, n, endpoint=False)
+        steps = np.arange(0.0, reach, 0.5 * self.res)
+        px = x + np.cos(th)[:, None] * steps[None, :]
+        py = y + np.sin(th)[:, None] * steps[None, :]
+        rows, cols = self.cells(np.stack([px.ravel(), py.ravel()], axis=1))
+        rows, cols = rows.reshape(px.shape), cols.reshape(px.shape)
+        opaque = ~(self.logodds[rows, cols] < T_FREE)
+        opaque[:, 0] = False                               # the robot's own cell
+        before = np.cumsum(opaque, axis=1) - opaque        # opaque cells before this sample
+        vis = before == 0
+        self.viewed[rows[vis], cols[vis]] = True
 
     def occupied(self):
         return self.logodds > T_OCC

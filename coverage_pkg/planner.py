@@ -72,11 +72,12 @@ class PlannerConfig:
     max_stuck: int = 6                 # consecutive stuck events before stopping for good
     max_retries: int = 3               # stuck events on one node before it is given up
     gvd_min_angle: float = math.radians(50.0)
+    cusp_min_angle: float = math.radians(25.0)  # a 1.2 m door seen from D = delta: 35 deg
     gvd_min_length: float = 0.5        # m, shorter isolated GVD pieces are sensing artefacts
     warmup: float = 1.0                # s spinning in place before the first plan
     gvd_tolerance: float = 0.4         # m, a GVD edge passed this close counts as followed
     lap_tolerance: float = 0.1         # m, same for slices and boundary
-    min_piece: float = 0.3             # m, shorter leftover pieces are ignored
+    min_charge: int = 2                # unseen cells charged to a work cell to make it work
     min_vast_area: float = 0.5         # m^2, smaller VR components are sensing slivers
     event_tolerance: float = 0.15      # m, equal closest ranges (GVD order) within this
     critical_angle: float = math.radians(12.0)  # bearing tolerance of the critical point test
@@ -152,6 +153,7 @@ class CoveragePlanner:
         self.sensed = {'cusp': [], 'critical': [], 'meet': []}   # (x, y, detail) in odom
         self._closed_cells = []         # centroids of Morse cells reported closed
         self._escape = False
+        self._viewed_at = None
 
     # ------------------------------------------------------------------ inputs
 
@@ -181,10 +183,18 @@ class CoveragePlanner:
             self.t_first_sweep = t
         self.grid.integrate(free_xy, occ_xy)
         self.sweeps += 1
+        self._detector_footprint()
         if self.cfg.detector == 'extended' and t - self.t_first_sweep >= self.cfg.warmup:
             self._sense_events(t, ranges)
         else:
             self.min_distance = self._ring_distance(ranges)
+
+    def _detector_footprint(self):
+        """Record what the detector (range delta, line of sight) has seen, every 0.1 m."""
+        last = getattr(self, '_viewed_at', None)
+        if last is None or math.dist(last, self.pose[:2]) >= 0.1:
+            self._viewed_at = self.pose[:2]
+            self.grid.mark_viewed(self.pose[0], self.pose[1], self.det)
 
     # ------------------------------------------------------------------ sensor tests
 
@@ -349,14 +359,18 @@ class CoveragePlanner:
     def _lapping_layers(self, d, x0, res):
         """Lapping slices x = x_ref + k * spacing and the boundary followed at D = delta.
 
-        The boundary is the curve ``D = delta`` itself: the narrow cells touching VR (their D is
-        within one cell of delta, at most delta), so a wall at delta from it is seen; the
+        The boundary is the curve ``D = delta`` as the grid knows it: the ring of narrow cells
+        one cell outside VR (D one to two cells below delta). The grid places a wall only to
+        within a cell, so following the first ring (D just below delta) left strips along the
+        walls unseen (two_rooms: 95 % of CVS); one cell in, the wall is within delta. The
+        lap spacing stays exactly 2 delta. The
         robot-size baseline, which has no narrow region, follows the edge of FCS_r.
         """
         vast = d['vast']
         if self.cfg.detector == 'extended':
             ring = ndimage.binary_dilation(vast, structure=np.ones((3, 3)))
-            boundary = d['narrow'] & ring
+            ring2 = ndimage.binary_dilation(ring, structure=np.ones((3, 3)))
+            boundary = d['narrow'] & ring2 & ~ring
         else:
             boundary = morse.boundary_cells(vast)
         lap = morse.lap_columns(vast.shape[1], x0, res, self.x_ref, self.spacing)
@@ -375,8 +389,11 @@ class CoveragePlanner:
                                  & d['reach'], min_cells)
         d['gvd'] = gvd
         d['narrow_gvd'] = gvdmod.prune_small(gvd & d['narrow'], min_cells)
-        d['cusps'] = gvdmod.cusp_cells(gvd & d['reach'], np.where(d['vast'], np.inf,
-                                                                  d['dist']), self.det)
+        # Cusps are predicted on a GVD kept down to a smaller angle: seen from D = delta, the
+        # two jambs of a 1.2 m door are only 35 degrees apart (the followed GVD keeps 50 to
+        # drop the spurs that noisy walls grow near them, where D is small).
+        wide = gvdmod.gvd_cells(d['free'], fr, fc, cfg.cusp_min_angle) & d['reach']
+        d['cusps'] = gvdmod.cusp_cells(wide, np.where(d['vast'], np.inf, d['dist']), self.det)
 
     # ------------------------------------------------------------------ Algorithm 1
 
@@ -452,7 +469,9 @@ class CoveragePlanner:
                 win = (slice(max(ri - 2, 0), ri + 3), slice(max(ci - 2, 0), ci + 3))
                 if (vl[win] == v).any() and (nl[win] == n).any():
                     predicted.append(tuple(d['to_world']([r], [c])[0]))
-            self.graph.link(a, b, own, predicted, tuple(pts[len(pts) // 2]))
+            here = np.asarray(self.pose[:2])
+            near = pts[int(np.argmin(np.hypot(*(pts - here).T)))]
+            self.graph.link(a, b, own, predicted, tuple(near))
 
     def _attach_critical_points(self, d, vl, vmap):
         """The sensed critical points of each vast node and its Morse cells (Reeb graph edges:
@@ -488,13 +507,37 @@ class CoveragePlanner:
             if c is not None:
                 k = int(math.ceil(0.5 / res))
                 blocked[max(c[0] - k, 0):c[0] + k + 1, max(c[1] - k, 0):c[1] + k + 1] = True
-        min_cells = max(2, int(round(cfg.min_piece / res)))
-        lap = (d['lap'] | d['boundary']) & (dtrace > cfg.lap_tolerance) & ~blocked
-        gvd = d['narrow_gvd'] & (dtrace > cfg.gvd_tolerance) & ~blocked
-        d['undone_lap'] = gvdmod.prune_small(lap, min_cells)
-        d['undone_gvd'] = gvdmod.prune_small(gvd, min_cells)
+        need = self._needed_work(d, res)
+        # Laps inside VR are driven whole (boustrophedon, Section II); the boundary and the
+        # GVD only where something is still unseen.
+        laps = d['lap'] & d['vast']
+        d['undone_lap'] = (laps | (d['boundary'] & need)) & (dtrace > cfg.lap_tolerance) \
+            & ~blocked
+        d['undone_gvd'] = d['narrow_gvd'] & need & (dtrace > cfg.gvd_tolerance) & ~blocked
         d['blocked'] = blocked
         return d['undone_lap'] | d['undone_gvd']
+
+    def _needed_work(self, d, res):
+        """Work cells (laps, boundary, narrow GVD) that still have something to show: each
+        known free cell the detector has not seen yet is charged to its nearest work cell (the
+        one whose pass would see it, Lemma 1 for the GVD); cells without a charge are done."""
+        work = d['lap'] | d['boundary'] | d['narrow_gvd']
+        if not work.any():
+            return np.zeros_like(work)
+        rs, cs = d['rs'], d['cs']
+        # Unknown cells next to known free space (the frontier, not an echo) are unseen too:
+        # the map grows there, and the cell decomposition with it.
+        # (A ray of the detector ends on such a cell, so it is never 'viewed'; it is work
+        # until the map has grown past it. Unknown cells next to an echo are the wall.)
+        frontier = (~d['free'] & ~d['occupied'] & ndimage.binary_dilation(d['free'])
+                    & ~ndimage.binary_dilation(d['occupied'], iterations=2))
+        unseen = (d['free'] & ~self.grid.viewed[rs, cs]) | frontier
+        dw, (ir, ic) = ndimage.distance_transform_edt(~work, return_indices=True)
+        sel = unseen & (dw * res <= self.det + res)
+        charge = np.zeros(work.shape, dtype=np.int32)
+        np.add.at(charge, (ir[sel], ic[sel]), 1)
+        # A single unseen cell is a sonar speckle more often than a place: two make work.
+        return work & (charge >= self.cfg.min_charge)
 
     def _work_per_node(self, d, undone, node_of):
         """Remaining work per node. Boundary cells lie in NR but are the vast node's work
@@ -612,6 +655,12 @@ class CoveragePlanner:
         route when the node was just chosen, and follow the piece."""
         cum, mcp, _ = cost
         mine = cand & (d['owner'] == node.id)
+        if node.kind == 'vast':
+            # Boustrophedon: the laps of the cell first, each from its nearer end, then what
+            # the lap ends left of the boundary.
+            laps = mine & d['lap'] & d['vast'] & d['undone_lap']
+            if laps.any():
+                mine = laps
         score = np.where(mine, cum, np.inf)
         if node.kind == 'vast':
             rc = d['reeb'][d['start']]
@@ -643,14 +692,8 @@ class CoveragePlanner:
         self._route = None
         if not hops or len(hops) < 2:
             return []
-        out = []
-        here = self.pose[:2]
-        for a, b in zip(hops[:-1], hops[1:]):
-            p = self.graph.crossing(a, b, here)
-            if p is not None and d['to_cell'](*p) is not None:
-                out.append(p)
-                here = p
-        return out
+        pts = self.graph.route_crossings(hops, self.pose[:2])
+        return [p for p in pts if d['to_cell'](*p) is not None]
 
     def _path_via(self, d, mcp, cost, via, goal):
         """Grid path from the robot through the route waypoints to ``goal`` (cells)."""

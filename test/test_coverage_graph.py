@@ -40,10 +40,12 @@ def test_full_graph_covers_a_small_world_and_terminates(tmp_path):
     assert 'sonar_timeout' in kinds and 'sonar_resumed' in kinds
     stop = next(e for e in r['events'] if e[1] == 'sonar_timeout')
     assert 8.0 <= stop[0] <= 8.0 + 0.5 + 0.15
-    types = {n['type'] for n in r['hierarchical_graph']['nodes']}
-    assert types == {'vast', 'narrow'}
-    assert r['hierarchical_graph']['edges'] and all(
-        e['cusp_points'] for e in r['hierarchical_graph']['edges'])
+    # Every free point of the 9 m x 6 m room is within delta = 2 m of a wall or the obstacle:
+    # VR is empty and the space is one narrow cell (Sec. IV-A), covered, with no edge.
+    alive = [n for n in r['hierarchical_graph']['nodes'] if n['alive']]
+    assert [(n['type'], n['covered']) for n in alive] == [('narrow', True)]
+    assert r['hierarchical_graph']['edges'] == []
+    assert r['given_up_nodes'] == []
     info = bag_info(bag)
     assert info.complete
     for topic in ('/coverage/ground_truth', '/sonar/scan', '/cmd_vel',
@@ -174,7 +176,7 @@ def test_replayed_bag_gives_the_same_decisions():
     params = json.loads((sample / 'params.json').read_text())
     config = PlannerConfig(delta=params['delta'], radius=params['radius'])
     mine, recorded, planner = _replay(sample / 'bag', config, params['beam_width'])
-    assert len(recorded) > 300
+    assert len(recorded) > 150                 # the re-recorded run (issue 10) is 19.4 s
     assert mine == recorded
     assert planner.state == 'done'
     status = [deserialize(m) for m in read_messages(sample / 'bag', ['/coverage/status'])]

@@ -1,0 +1,156 @@
+"""The planner builds the paper's decomposition from sensor events (issue 10).
+
+Constructed worlds whose hierarchical decomposition (Section IV-A: vast cells = components of
+VR = {D > delta}, narrow cells = components of NR = FCS_r minus VR) is known by hand; delta = 2 m,
+r = 0.25 m. Each world is covered once (ROS-free loop, ground-truth path) and the run is checked
+against the hand-made answer: the cells and their adjacency, the lap spacing, where the cusp
+points were sensed (on the GVD where D = delta) and where the critical points were sensed.
+A planner that does not build this decomposition, or laps at another spacing, fails here.
+"""
+import math
+
+import numpy as np
+import pytest
+
+from coverage_pkg.kinematic import run_kinematic
+from coverage_pkg.planner import CoveragePlanner, PlannerConfig
+from coverage_pkg.sonar import SonarRing
+from coverage_pkg.world import world_from_dict
+
+DELTA = 2.0
+# 16 x 12 room, one 4 x 2 obstacle in the middle: VR is a ring around the obstacle (one vast
+# cell); NR is the band along the walls and the band around the obstacle (two narrow cells,
+# separated by VR).
+RECT_OBS = {'name': 'rect_obs', 'boundary': [[0, 0], [16, 0], [16, 12], [0, 12]],
+            'obstacles': [[[6, 5], [10, 5], [10, 7], [6, 7]]], 'start': [1.0, 1.0]}
+# Two 8 x 8 rooms joined by a 4 m corridor 1.5 m wide: two vast cells (one per room), one
+# narrow cell (the wall band, connected through the corridor).
+TWO_ROOMS = {'name': 'two_rooms_corridor',
+             'boundary': [[0, 0], [8, 0], [8, 3.25], [12, 3.25], [12, 0], [20, 0], [20, 8],
+                          [12, 8], [12, 4.75], [8, 4.75], [8, 8], [0, 8]],
+             'obstacles': [], 'start': [1.0, 1.0]}
+# T-hall: a 20 x 6 crossbar on a 3 m wide, 8 m long stem: one vast cell (the middle of the
+# crossbar), one narrow cell (the stem and the band along the crossbar's walls).
+T_HALL = {'name': 't_hall',
+          'boundary': [[8.5, 0], [11.5, 0], [11.5, 8], [20, 8], [20, 14], [0, 14], [0, 8],
+                       [8.5, 8]],
+          'obstacles': [], 'start': [10.0, 1.0]}
+# An empty 18 x 10 room: laps x = 1 + 4k cross VR (2 < x < 16) at x = 5, 9, 13.
+PLAIN = {'name': 'plain', 'boundary': [[0, 0], [18, 0], [18, 10], [0, 10]], 'obstacles': [],
+         'start': [1.0, 1.0]}
+
+WORLDS = {'rect_obs': RECT_OBS, 'two_rooms': TWO_ROOMS, 't_hall': T_HALL, 'plain': PLAIN}
+# Hand count: (vast cells, narrow cells, vast-narrow edges).
+CELLS = {'rect_obs': (1, 2, 2), 'two_rooms': (2, 1, 2), 't_hall': (1, 1, 1),
+         'plain': (1, 1, 1)}
+# Cusp points (GVD points with D = delta), worked out by hand: the bisector of each concave
+# corner at delta from both walls; the centre line of a door/stem where the distance to its
+# two corners reaches delta (corridor half-width 0.75: 8 - sqrt(4 - 0.75^2) = 6.146;
+# stem half-width 1.5: 8 + sqrt(4 - 1.5^2) = 9.323).
+CUSPS = {
+    'rect_obs': [(2, 2), (14, 2), (2, 10), (14, 10)],
+    'two_rooms': [(2, 2), (6, 2), (2, 6), (6, 6), (14, 2), (18, 2), (14, 6), (18, 6),
+                  (8 - math.sqrt(4 - 0.75 ** 2), 4), (12 + math.sqrt(4 - 0.75 ** 2), 4)],
+    't_hall': [(2, 10), (18, 10), (2, 12), (18, 12), (10, 8 + math.sqrt(4 - 1.5 ** 2))],
+    'plain': [(2, 2), (16, 2), (2, 8), (16, 8)],
+}
+
+
+@pytest.fixture(scope='module')
+def runs():
+    """Each world covered once (about 10-25 s wall each)."""
+    return {k: run_kinematic(world_from_dict(w), PlannerConfig(delta=DELTA), max_time=600)
+            for k, w in WORLDS.items()}
+
+
+@pytest.mark.parametrize('name', sorted(WORLDS))
+def test_cells_and_adjacency_are_the_hand_made_decomposition(runs, name):
+    r = runs[name]
+    p = r['planner']
+    assert r['state'] == 'done', p.events[-3:]
+    assert r['covered_fraction'] >= 0.99
+    vast, narrow = p.graph.alive('vast'), p.graph.alive('narrow')
+    n_vast, n_narrow, n_edges = CELLS[name]
+    assert (len(vast), len(narrow)) == (n_vast, n_narrow)
+    edges = set(p.graph.edges)
+    assert len(edges) == n_edges
+    ids = {n.id for n in vast}, {n.id for n in narrow}
+    assert all(v in ids[0] and n in ids[1] for v, n in edges)   # only vast-narrow edges
+    assert {v for v, _ in edges} == ids[0] and {n for _, n in edges} == ids[1]
+    assert all(n.covered for n in vast + narrow) and not p.given_up
+    # No sliver cells: every vast cell is bigger than a detector disk's quarter.
+    assert all(n.area > 0.25 * math.pi * DELTA ** 2 for n in vast)
+
+
+@pytest.mark.parametrize('name', sorted(WORLDS))
+def test_cusp_points_are_sensed_where_the_gvd_has_d_equal_delta(runs, name):
+    p = runs[name]['planner']
+    sensed = [(x, y) for x, y, _, _ in p.sensed['cusp']]
+    assert len(sensed) >= 4
+    truth = np.array(CUSPS[name], dtype=float)
+    for x, y in sensed:
+        assert np.min(np.hypot(truth[:, 0] - x, truth[:, 1] - y)) <= 0.15, (x, y)
+    kinds = {e[1] for e in p.events}
+    assert {'cusp', 'node_created', 'start', 'done'} <= kinds
+
+
+def test_every_critical_point_is_sensed_within_0_3_m(runs):
+    """rect_obs: the slice h = x changes connectivity at the obstacle's delta-offset (left side
+    x = 4, right side x = 12, both for 5 <= y <= 7) and at the walls' (x = 2, x = 14). The
+    sides are flat (degenerate critical points); each must be sensed, with the obstacle on the
+    correct side (+x: the slice closes a cell; -x: it opens one)."""
+    p = runs['rect_obs']['planner']
+    crit = p.sensed['critical']
+    world_critical = [(4.0, 5.0, 7.0, +1), (12.0, 5.0, 7.0, -1), (2.0, 2.0, 10.0, -1),
+                      (14.0, 2.0, 10.0, +1)]
+    for x0, y0, y1, side in world_critical:
+        assert any(abs(x - x0) <= 0.3 and y0 - 0.3 <= y <= y1 + 0.3 and s == side
+                   for x, y, _, s in crit), (x0, side, crit)
+    # and nothing sensed elsewhere
+    for x, y, _, s in crit:
+        assert any(abs(x - x0) <= 0.3 and y0 - 0.3 <= y <= y1 + 0.3 and s == side
+                   for x0, y0, y1, side in world_critical), (x, y, s)
+    assert any(e[1] == 'cell_closed' for e in p.events)
+
+
+def test_laps_are_two_delta_apart_on_the_ground_truth_path(runs):
+    """Straight runs along the slice direction (|dx| < 5 cm over at least 1.5 m of y) inside VR
+    (true clearance > delta + 0.5 m, so boundary following is not counted): their x values,
+    grouped, are 2 delta apart within 0.1 m."""
+    r = runs['plain']
+    world = world_from_dict(PLAIN)
+    path = np.asarray(r['path'])
+    xs = []
+    i = 0
+    while i < len(path) - 1:
+        j = i
+        while j + 1 < len(path) and abs(path[j + 1, 0] - path[i, 0]) < 0.05:
+            j += 1
+        run = path[i:j + 1]
+        if np.ptp(run[:, 1]) >= 1.5:
+            inside = [world.clearance(q) > DELTA + 0.5 for q in run]
+            if np.mean(inside) > 0.5:
+                xs.append(float(np.median(run[:, 0])))
+        i = j + 1
+    laps = []
+    for x in sorted(xs):
+        if not laps or x - laps[-1][-1] > 0.3:
+            laps.append([x])
+        else:
+            laps[-1].append(x)
+    centres = [float(np.mean(g)) for g in laps]
+    assert len(centres) >= 3, centres
+    gaps = np.diff(centres)
+    assert np.all(np.abs(gaps - 2 * DELTA) <= 0.1), centres
+
+
+def test_a_given_up_node_means_incomplete_never_done():
+    ring = SonarRing()
+    p = CoveragePlanner(PlannerConfig(), ring.mount_angles(), ring.beam_width, ring.min_range,
+                        ring.max_range)
+    p.on_odometry(0.0, 0.0, 0.0, 0.0)
+    node = p.graph.create_node('narrow', (0.0, 0.0))
+    p.given_up.append(node.id)
+    p._finish(1.0)
+    assert p.state == 'incomplete'
+    assert p.events[-1][1] == 'incomplete' and str(node.id) in p.events[-1][4]
