@@ -1,58 +1,62 @@
 """The spatial 3-2-1 platform of Fig. 1 (left) of Vaca, Aranda & Thomas among polyhedral
-obstacles: singularity and collision predicates as signs of 4x4 determinants, rho in 6-D, and
-a sampled roadmap on the simplified Voronoi diagram.
+obstacles: singularity, contact and containment predicates as signs of 4x4 determinants, and
+the measure rho in 6-D (section 4).
 
 Robot (labels as in the paper's pure condition): base attachments P1..P6 fixed on the ground,
 platform triangle P7 P8 P9. Three legs meet at P7 (from P1, P2, P3), two at P8 (from P5, P6) and
 one at P9 (from P4). The platform is singular iff a tetrahedron of the factorised pure
 condition ``[p1 p2 p3 p7][p5 p6 p7 p8][p4 p7 p8 p9] = 0`` degenerates (section 2, eq. 2).
 
-Collisions (section 3): every leg segment and every platform edge against every triangle of
-every obstacle box, and every box edge against the platform triangle, each the segment-triangle
-basic contact :func:`~paramotion.voronoi.predicates.segment_pierces_triangle`; a box is hit iff
-one of them holds (leg-leg contacts and leg length limits are not modelled).
+Forbidden configurations, each a factor of the fused AND tree (one *contact* each; rho is the
+minimum over them, so the simplified Voronoi diagram is where two contacts tie):
+
+* singularity: one factor ``Delta OR NOT Delta`` per pure-condition tetrahedron;
+* segment-face contacts (section 3): every leg and platform edge against every (convex,
+  quadrilateral) face of every box, and every box edge against the platform triangle;
+* containment: a platform vertex inside a box (AND of the six face-plane signs), so a
+  platform entirely inside a box without touching a face is forbidden too (a leg inside a box
+  has its base point inside, which the scene refuses);
+* leg-leg contacts: two legs (or a leg and a platform edge) that share no attachment pass
+  through each other. Two segments ab, cd meet iff ``[a b c d] = 0`` (coplanar) while their
+  projections along the common normal ``n = (b - a) x (d - c)`` cross; the crossing is four
+  determinants ``[c d a e2]``, ``[c d b e2]``, ``[a b c e1]``, ``[a b d e1]`` with the derived
+  points ``e1 = a + s n/|n|``, ``e2 = c + s n/|n|``. Free = ``NOT cross OR |[a b c d]| > 0``.
+  This contact is a hypersurface (like a singularity), so path checks also refuse a sign change
+  of ``[a b c d]`` between two samples while the projections cross;
+* leg-length limits ``min <= |P_b - P_a| <= max`` and the planning bounds: not determinants
+  (the paper has neither); margins in m (angles times ``angle_scale``) times ``s**2``
+  (``s**2`` = twice the platform triangle's area, the scale of a plane-point determinant with
+  the platform as its face), one factor per limit.
 
 Configuration ``q = (x, y, z, roll, pitch, yaw)``: position of P7 (m) and ZYX Euler angles
-(rad) of the platform. rho (section 4) is evaluated for many poses at once.
-
-:class:`SampledVoronoiPlanner`: random free poses are retracted onto the diagram (moving along
-the gradient of rho - of the active determinant - until the active determinant changes, so rho
-grows on the way); diagram points are joined to their nearest neighbours; a lazy Dijkstra search
-checks the edges it uses densely (every ``check_step`` m and ``check_dangle`` rad: rho > 0 and no
-sign change of a pure-condition determinant), drops refused edges and searches again, until a
-verified path or an exhausted roadmap ("no path" for this sample set). No ROS imports.
+(rad) of the platform. Everything is evaluated for many poses at once. No ROS imports.
 """
 import json
 import math
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import dijkstra
-from scipy.spatial import cKDTree
 
 from paramotion.errors import UserError
 from paramotion.jsonfile import load_json_object
 from paramotion.voronoi.distance import compile_rho
-from paramotion.voronoi.planar import NamedPredicate
-from paramotion.voronoi.planner import VoronoiPlanner
 from paramotion.voronoi.predicates import (
+    And,
+    Delta,
     Not,
     Or,
+    Xor,
     evaluate_determinants,
     fuse,
     pure_condition_free,
     segment_pierces_triangle,
 )
 
-__all__ = ['PURE_CONDITION', 'Spatial321Model', 'SampledVoronoiPlanner', 'box_mesh',
-           'demo_model', 'load_scene', 'rpy_matrix', 'DEMO_START', 'DEMO_GOAL']
-
 #: Factors of the 3-2-1 pure condition [p1p2p3p7][p5p6p7p8][p4p7p8p9].
 PURE_CONDITION = ((1, 2, 3, 7), (5, 6, 7, 8), (4, 7, 8, 9))
 LEGS = ((1, 7), (2, 7), (3, 7), (5, 8), (6, 8), (4, 9))
+PLATFORM_EDGES = ((7, 8), (8, 9), (9, 7))
 
 DEMO_BASE = {1: (-0.40, -0.30, 0.0), 2: (0.10, -0.50, 0.0), 3: (-0.40, 0.30, 0.0),
              4: (0.40, 0.60, 0.0), 5: (0.70, -0.30, 0.0), 6: (0.70, 0.30, 0.0)}
@@ -64,8 +68,13 @@ DEMO_START = (-0.2, -0.2, 0.85, math.radians(4), math.radians(-3), math.radians(
 DEMO_GOAL = (0.3, 0.3, 0.85, math.radians(-3), math.radians(4), math.radians(8))
 DEMO_BOUNDS = {'position_min': (-0.25, -0.3, 0.45), 'position_max': (0.4, 0.4, 1.1),
                'angle_max_deg': 30.0}
-
-_CHUNK = 1 << 13
+#: Demo leg-length limits (m): the legs' actuator stroke.
+DEMO_LEG_LIMITS = (0.35, 1.55)
+#: Metres per radian when angles and positions are compared (metric, bounds margins).
+ANGLE_SCALE = 0.5
+_DERIVED = 1000        # first label of the derived points of the leg-leg contacts
+_CHUNK = 1 << 12
+_SMALL = 128     # below this batch size the flat evaluator is faster
 
 
 def rpy_matrix(rpy):
@@ -80,25 +89,157 @@ def rpy_matrix(rpy):
         np.stack([-sp, cp * sr, cp * cr], axis=-1)], axis=-2)
 
 
+#: Faces of an axis-aligned box over its corners (index bits x, y, z), counter-clockwise seen
+#: from outside (outward normals).
+_BOX_QUADS = ((0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4),
+              (1, 5, 7, 3))
+
+
 def box_mesh(center, size):
-    """Vertices (8, 3), triangles (12, 3) with outward counter-clockwise order, edges (12, 2)."""
+    """Vertices (8, 3), quadrilateral faces (6, 4) with outward counter-clockwise order, edges
+    (12, 2)."""
     c = np.asarray(center, dtype=float)
     h = 0.5 * np.asarray(size, dtype=float)
     corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
     verts = c + corners * h
-    quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4),
-             (1, 5, 7, 3)]
-    tris = []
-    for a, b, cc, d in quads:
-        tris += [(a, b, cc), (a, cc, d)]
-    edges = sorted({tuple(sorted(e)) for a, b, cc, d in quads
+    edges = sorted({tuple(sorted(e)) for a, b, cc, d in _BOX_QUADS
                     for e in ((a, b), (b, cc), (cc, d), (d, a))})
-    return verts, np.array(tris), np.array(edges)
+    return verts, np.array(_BOX_QUADS), np.array(edges)
+
+
+def segment_pierces_face(a, b, face):
+    """Segment ab crosses the convex planar polygon ``face`` (labels, counter-clockwise).
+
+    Section 3's segment-triangle contact for a convex polygon: a and b on opposite sides of the
+    face plane (``[a f0 f1 f2]``, ``[b f0 f1 f2]``) and the line ab on the same side of every
+    edge line (``[a b f_i f_i+1]`` all positive or all negative). One contact per face (not per
+    triangle), so the two halves of a quadrilateral never tie identically.
+    """
+    f = tuple(face)
+    plane = f[:3]
+    sides = [Delta(a, b, f[i], f[(i + 1) % len(f)]) for i in range(len(f))]
+    return And(Xor(Delta(a, *plane), Delta(b, *plane)),
+               Or(And(*sides), And(*(Not(e) for e in sides))))
+
+
+def point_inside_box(p, faces):
+    """Point p strictly inside the convex polyhedron with outward counter-clockwise ``faces``:
+    ``[f0 f1 f2 p] > 0`` for every face (``[f0 f1 f2 p] = -(p - f0) . n_out``)."""
+    return And(*(Delta(f[0], f[1], f[2], p) for f in faces))
+
+
+def segments_meet(a, b, c, d, e1, e2):
+    """Two segments ab, cd in space pass through each other: coplanar (``[a b c d] = 0``) and
+    crossing in the projection along their common normal (derived points ``e1`` on the normal
+    through a, ``e2`` through c). Returns ``(cross, free)``: the crossing predicate and the
+    free predicate ``NOT cross OR [a b c d] != 0``."""
+    cross = And(Xor(Delta(c, d, a, e2), Delta(c, d, b, e2)),
+                Xor(Delta(a, b, c, e1), Delta(a, b, d, e1)))
+    return cross, Or(Not(cross), Or(Delta(a, b, c, d), Not(Delta(a, b, c, d))))
+
+
+def robot_segment_pairs():
+    """Legs and platform edges that share no attachment point (the leg-leg contacts)."""
+    segs = list(LEGS) + list(PLATFORM_EDGES)
+    out = []
+    for i, s in enumerate(segs):
+        for t in segs[i + 1:]:
+            if set(s) & set(t) or (s in PLATFORM_EDGES and t in PLATFORM_EDGES):
+                continue
+            out.append((s, t))
+    return tuple(out)
+
+
+class FlatContacts:
+    """All contacts of a compiled rho program evaluated level by level with numpy.
+
+    The same min/max tree as :class:`~paramotion.voronoi.distance.RhoProgram` (same values;
+    ties resolve to the first child, as there), flattened so that every node of one height
+    and operation is one ``reduceat``: a few dozen array operations per batch instead of one
+    per node, and all 4x4 determinants in one vectorised expression.
+    """
+
+    def __init__(self, program, labels):
+        self.labels = list(labels)
+        where = {lab: i for i, lab in enumerate(self.labels)}
+        self.key_idx = np.array([[where[lab] for lab in key] for key in program.keys])
+        leaves = program.leaves
+        self.leaf_key = np.array([k for k, _ in leaves])
+        self.leaf_sign = np.array([float(sg) for _, sg in leaves])
+        self.leaf_code = (2 * self.leaf_key + (self.leaf_sign > 0)).astype(np.int32)
+        n_leaf = len(leaves)
+        nodes = []                       # (op, child ids), ids >= n_leaf
+        height = {}
+
+        def visit(node):
+            if isinstance(node, (int, np.integer)):
+                return int(node), 0
+            kids = [visit(c) for c in node.children]
+            nid = n_leaf + len(nodes)
+            nodes.append((node.op, [k for k, _ in kids]))
+            height[nid] = 1 + max(h for _, h in kids)
+            return nid, height[nid]
+
+        self.roots = np.array([visit(c)[0] for c in program.root.children])
+        self.n_nodes = n_leaf + len(nodes)
+        groups = {}
+        for i, (op, kids) in enumerate(nodes):
+            nid = n_leaf + i
+            groups.setdefault((height[nid], op), []).append((nid, kids))
+        self.groups = []
+        for (_, op), items in sorted(groups.items()):
+            ids = np.array([nid for nid, _ in items])
+            kids = np.concatenate([np.array(k) for _, k in items])
+            counts = np.array([len(k) for _, k in items])
+            starts = np.r_[0, np.cumsum(counts)[:-1]]
+            self.groups.append((op == 'min', ids, kids, starts, counts))
+
+    def determinants(self, pts, n):
+        """All determinants ``(n_keys, n)`` from the labelled points ``(n, 3)`` each."""
+        P = np.stack([np.broadcast_to(pts[lab], (n, 3)) for lab in self.labels])
+        a, b, c, d = (P[self.key_idx[:, i]] for i in range(4))
+        u, v, w = b - a, c - a, d - a
+        return -(u[..., 0] * (v[..., 1] * w[..., 2] - v[..., 2] * w[..., 1])
+                 + u[..., 1] * (v[..., 2] * w[..., 0] - v[..., 0] * w[..., 2])
+                 + u[..., 2] * (v[..., 0] * w[..., 1] - v[..., 1] * w[..., 0]))
+
+    def evaluate(self, dets, codes=True):
+        """Values ``(n_contacts, n)`` and (if ``codes``) active-leaf codes of the contacts."""
+        n = dets.shape[1]
+        vals = np.empty((self.n_nodes, n))
+        n_leaf = len(self.leaf_key)
+        vals[:n_leaf] = self.leaf_sign[:, None] * dets[self.leaf_key]
+        code = None
+        if codes:
+            code = np.empty((self.n_nodes, n), dtype=np.int32)
+            code[:n_leaf] = self.leaf_code[:, None]
+        for is_min, ids, kids, starts, counts in self.groups:
+            cv = vals[kids]
+            red = (np.minimum if is_min else np.maximum).reduceat(cv, starts, axis=0)
+            vals[ids] = red
+            if codes:
+                eq = cv == np.repeat(red, counts, axis=0)
+                pos = np.where(eq, np.arange(len(kids))[:, None], len(kids))
+                first = np.minimum.reduceat(pos, starts, axis=0)
+                code[ids] = np.take_along_axis(code[kids], first, axis=0)
+        return vals[self.roots], (code[self.roots] if codes else None)
+
+
+@dataclass(frozen=True)
+class Contact:
+    """One factor of the fused AND tree, with the words used in error messages."""
+
+    name: str
+    kind: str          # 'singularity', 'collision', 'containment', 'leg-leg'
+    tree: object
 
 
 @dataclass
 class Spatial321Model:
-    """3-2-1 platform, obstacle boxes and the fused predicate (singularities AND collisions)."""
+    """3-2-1 platform, obstacle boxes, leg-length limits and the fused predicate.
+
+    ``leg_limits`` is ``(min, max)`` leg length in m, or None for no limit.
+    """
 
     base: dict
     platform: dict
@@ -106,87 +247,230 @@ class Spatial321Model:
     position_min: tuple
     position_max: tuple
     angle_max: float
-    predicates: list = field(default_factory=list)
+    leg_limits: tuple = None
+    angle_scale: float = ANGLE_SCALE
+    contacts: list = field(default_factory=list)
 
     def __post_init__(self):
         self.fixed = {k: np.asarray(v, dtype=float) for k, v in self.base.items()}
         self.moving = {k: np.asarray(v, dtype=float) for k, v in self.platform.items()}
-        self.predicates = [NamedPredicate(
+        if self.leg_limits is not None:
+            lo, hi = (float(v) for v in self.leg_limits)
+            if not (0 <= lo < hi and math.isfinite(hi)):
+                raise UserError(f'leg length limits {self.leg_limits}: need 0 <= min < max')
+            self.leg_limits = (lo, hi)
+        tri = [self.moving[k] for k in (7, 8, 9)]
+        area2 = float(np.linalg.norm(np.cross(tri[1] - tri[0], tri[2] - tri[0])))
+        if not area2 > 0:
+            raise UserError('platform points 7, 8, 9 must form a triangle')
+        self.area2 = area2                      # s**2 of the module docstring
+        self.derived_length = math.sqrt(area2)  # s: distance of e1, e2 from the segment
+        contacts = [Contact(
             f'singularity: [p{a} p{b} p{c} p{d}] = 0 (tetrahedron P{a}P{b}P{c}P{d} flat)',
             'singularity', pure_condition_free([(a, b, c, d)]))
             for a, b, c, d in PURE_CONDITION]
         self.meshes = []
         label = 10
         for n, box in enumerate(self.boxes):
-            verts, tris, edges = box_mesh(box['center'], box['size'])
+            verts, quads, edges = box_mesh(box['center'], box['size'])
+            lo, hi = verts.min(axis=0), verts.max(axis=0)
+            for k, v in self.fixed.items():
+                if np.all(v >= lo) and np.all(v <= hi):
+                    raise UserError(f'box {n} contains or touches base point P{k} '
+                                    f'{np.round(v, 4).tolist()}: its leg could never be free')
             labels = list(range(label, label + 8))
             label += 8
             for lab, v in zip(labels, verts):
                 self.fixed[lab] = v
-            self.meshes.append((verts, tris, edges))
-            tri_l = [tuple(labels[i] for i in t) for t in tris]
+            self.meshes.append((verts, quads, edges))
+            faces = [tuple(labels[i] for i in q) for q in quads]
             edge_l = [tuple(labels[i] for i in e) for e in edges]
-            for a, b in LEGS:
-                hits = [segment_pierces_triangle(a, b, *t) for t in tri_l]
-                self.predicates.append(NamedPredicate(
-                    f'collision: leg P{a}P{b} hits box {n}', 'collision', Not(Or(*hits))))
-            hits = [segment_pierces_triangle(a, b, *t)
-                    for a, b in ((7, 8), (8, 9), (9, 7)) for t in tri_l]
-            hits += [segment_pierces_triangle(a, b, 7, 8, 9) for a, b in edge_l]
-            self.predicates.append(NamedPredicate(
-                f'collision: platform P7P8P9 hits box {n}', 'collision', Not(Or(*hits))))
-        self.tree = fuse(*[p.tree for p in self.predicates])
+            for a, b in LEGS + PLATFORM_EDGES:
+                part = f'leg P{a}P{b}' if (a, b) in LEGS else f'platform edge P{a}P{b}'
+                for fi, face in enumerate(faces):
+                    contacts.append(Contact(f'collision: {part} crosses face {fi} of box {n}',
+                                            'collision', Not(segment_pierces_face(a, b, face))))
+            for ei, (a, b) in enumerate(edge_l):
+                contacts.append(Contact(
+                    f'collision: edge {ei} of box {n} crosses the platform P7P8P9',
+                    'collision', Not(segment_pierces_triangle(a, b, 7, 8, 9))))
+            for k in (7, 8, 9):
+                contacts.append(Contact(f'containment: platform vertex P{k} inside box {n}',
+                                        'containment', Not(point_inside_box(k, faces))))
+        self.segment_pairs = robot_segment_pairs()
+        self.cross_programs = []
+        for i, ((a, b), (c, d)) in enumerate(self.segment_pairs):
+            e1, e2 = _DERIVED + 2 * i, _DERIVED + 2 * i + 1
+            cross, free = segments_meet(a, b, c, d, e1, e2)
+            contacts.append(Contact(f'leg-leg: P{a}P{b} passes through P{c}P{d}', 'leg-leg',
+                                    free))
+            self.cross_programs.append(compile_rho(cross))
+        self.contacts = contacts
+        self.tree = fuse(*[c.tree for c in contacts])
         self.program = compile_rho(self.tree)
-        self.factor_programs = [compile_rho(p.tree) for p in self.predicates]
+        # Each contact compiles to one child (a max node) of the root min node, in order.
+        assert len(self.program.root.children) == len(contacts)
+        self.flat = FlatContacts(self.program, sorted({lab for key in self.program.keys
+                                                      for lab in key}))
+        self.contact_programs = [compile_rho(c.tree) for c in contacts]
         self.singular_keys = [tuple(sorted(f)) for f in PURE_CONDITION]
+        self.coplanar_keys = [tuple(sorted(s + t)) for s, t in self.segment_pairs]
+        self.extra_names = self._extra_names()
         span = float(np.linalg.norm(np.subtract(self.position_max, self.position_min)))
         self.free_tol = 1e-9 * span ** 3     # 4x4 brackets are volumes
 
+    def _extra_names(self):
+        names = []
+        for axis, ch in enumerate('xyz'):
+            names += [f'bounds: {ch} >= {self.position_min[axis]:g} m',
+                      f'bounds: {ch} <= {self.position_max[axis]:g} m']
+        for ch in ('roll', 'pitch', 'yaw'):
+            names += [f'bounds: {ch} >= -{math.degrees(self.angle_max):g} deg',
+                      f'bounds: {ch} <= {math.degrees(self.angle_max):g} deg']
+        if self.leg_limits is not None:
+            for a, b in LEGS:
+                names += [f'leg length: |P{a}P{b}| >= {self.leg_limits[0]:g} m',
+                          f'leg length: |P{a}P{b}| <= {self.leg_limits[1]:g} m']
+        return names
+
     # -- geometry ------------------------------------------------------------------------------
     def points(self, q):
+        """Labelled points at poses ``q`` (..., 6): base, box corners, platform, derived."""
         q = np.asarray(q, dtype=float)
         rot = rpy_matrix(q[..., 3:6])
         out = {k: np.broadcast_to(v, q.shape[:-1] + (3,)) for k, v in self.fixed.items()}
         for k, v in self.moving.items():
             out[k] = q[..., :3] + rot @ v
+        for i, ((a, b), (c, d)) in enumerate(self.segment_pairs):
+            n = np.cross(out[b] - out[a], out[d] - out[c])
+            norm = np.linalg.norm(n, axis=-1, keepdims=True)
+            n = np.divide(n, norm, out=np.zeros_like(n), where=norm > 0) * self.derived_length
+            out[_DERIVED + 2 * i] = out[a] + n
+            out[_DERIVED + 2 * i + 1] = out[c] + n
         return out
+
+    def extra_values(self, q, pts=None):
+        """Bounds and leg-length margins ``(n_extra, ...)`` (positive = satisfied)."""
+        q = np.asarray(q, dtype=float)
+        rows = []
+        for axis in range(3):
+            rows += [q[..., axis] - self.position_min[axis],
+                     self.position_max[axis] - q[..., axis]]
+        for axis in range(3, 6):
+            rows += [(self.angle_max + q[..., axis]) * self.angle_scale,
+                     (self.angle_max - q[..., axis]) * self.angle_scale]
+        if self.leg_limits is not None:
+            pts = self.points(q) if pts is None else pts
+            for a, b in LEGS:
+                length = np.linalg.norm(pts[b] - pts[a], axis=-1)
+                rows += [length - self.leg_limits[0], self.leg_limits[1] - length]
+        return np.stack(rows) * self.area2
 
     def _chunked(self, q, fn, dtypes):
         q = np.asarray(q, dtype=float)
         flat = q.reshape(-1, 6)
-        outs = [np.empty(len(flat), dtype=dt) for dt in dtypes]
+        outs = [np.empty((len(flat),) + shape, dtype=dt) for dt, shape in dtypes]
         for s in range(0, len(flat), _CHUNK):
             part = fn(flat[s:s + _CHUNK])
             part = part if isinstance(part, tuple) else (part,)
             for o, p in zip(outs, part):
                 o[s:s + _CHUNK] = p
-        outs = [o.reshape(q.shape[:-1]) for o in outs]
+        outs = [np.moveaxis(o, 0, -1).reshape(o.shape[1:] + q.shape[:-1]) for o in outs]
         return outs[0] if len(outs) == 1 else tuple(outs)
 
     def rho(self, q):
-        """rho of the fused predicate at poses ``q`` (..., 6)."""
+        """rho of the fused predicate (all contacts, bounds, leg limits) at poses (..., 6)."""
         prog = self.program
-        return self._chunked(
-            q, lambda c: prog.rho(evaluate_determinants(prog.keys, self.points(c), False)),
-            [float])
 
-    def evaluate(self, q):
-        """``(rho, active leaf)`` at poses ``q`` (..., 6)."""
+        def fn(c):
+            pts = self.points(c)
+            if len(c) < _SMALL:
+                vals, _ = self.flat.evaluate(self.flat.determinants(pts, len(c)), codes=False)
+                r = vals.min(axis=0)
+            else:
+                r = prog.rho(evaluate_determinants(prog.keys, pts, False))
+            return np.minimum(r, self.extra_values(c, pts).min(axis=0))
+        return self._chunked(q, fn, [(float, ())])
+
+    def contact_values(self, q):
+        """Per contact: value and active leaf, ``(n_contacts, ...)`` each.
+
+        Contacts are the root's children (the fused factors) followed by the bounds and
+        leg-length margins; a leaf is ``(determinant index, sign)`` coded as ``2 * index +
+        (sign > 0)``, bounds and leg limits get codes past the determinants'. Two contacts tie
+        only if their values are equal AND their active leaves differ (the same determinant
+        deciding two contacts, e.g. a box edge shared by two faces, is one feature).
+        """
+        n_det = len(self.program.keys)
+        n_extra = len(self.extra_names)
+
+        def fn(c):
+            pts = self.points(c)
+            if len(c) < _SMALL:
+                vals, codes = self.flat.evaluate(self.flat.determinants(pts, len(c)))
+            else:
+                vals, codes = self._tree_contacts(pts)
+            extra = self.extra_values(c, pts)
+            ecodes = 2 * n_det + np.arange(n_extra, dtype=np.int32)[:, None]
+            return (np.concatenate([vals, extra]).T,
+                    np.concatenate([codes, np.broadcast_to(ecodes, extra.shape)]).T)
+        n = len(self.contacts) + n_extra
+        return self._chunked(q, fn, [(float, (n,)), (np.int32, (n,))])
+
+    def _tree_contacts(self, pts):
+        """Contact values and leaf codes node by node (faster than :class:`FlatContacts`
+        for large batches, where numpy's per-call overhead no longer matters)."""
         prog = self.program
-        return self._chunked(
-            q, lambda c: prog.evaluate(evaluate_determinants(prog.keys, self.points(c), False)),
-            [float, np.int32])
+        dets = evaluate_determinants(prog.keys, pts, False)
+
+        def ev(node):
+            if isinstance(node, (int, np.integer)):
+                ki, sign = prog.leaves[node]
+                val = dets[ki] if sign > 0 else -dets[ki]
+                return val, np.full(val.shape, 2 * ki + (sign > 0), dtype=np.int32)
+            best, arg = ev(node.children[0])
+            best = np.array(best, copy=True)
+            for child in node.children[1:]:
+                val, idx = ev(child)
+                better = val < best if node.op == 'min' else val > best
+                np.copyto(best, val, where=better)
+                np.copyto(arg, idx, where=better)
+            return best, arg
+
+        vals, codes = zip(*(ev(k) for k in prog.root.children))
+        return np.stack(vals), np.stack(codes)
+
+    def contact_names(self):
+        """Readable name of each row of :meth:`contact_values`."""
+        return [c.name for c in self.contacts] + list(self.extra_names)
 
     def singular_signs(self, q):
         return np.sign(evaluate_determinants(self.singular_keys, self.points(q)))
 
+    def thin_state(self, q):
+        """Sign of ``[a b c d]`` and the projected crossing of every leg-leg pair, (pairs, ...).
+
+        Passing through each other between two poses = the sign changes while the projections
+        cross at either pose (the contact is a hypersurface that point samples step over).
+        """
+        pts = self.points(q)
+        signs = np.sign(evaluate_determinants(self.coplanar_keys, pts))
+        cross = np.stack([p.rho(evaluate_determinants(p.keys, pts)) > 0
+                          for p in self.cross_programs])
+        return signs, cross
+
     def diagnose(self, q):
+        """Names and values of every violated contact, bound and leg limit at one pose."""
         q = np.asarray(q, dtype=float).reshape(6)
+        pts = self.points(q)
         out = []
-        for pred, prog in zip(self.predicates, self.factor_programs):
-            v = float(prog.rho(evaluate_determinants(prog.keys, self.points(q))))
+        for contact, prog in zip(self.contacts, self.contact_programs):
+            v = float(prog.rho(evaluate_determinants(prog.keys, pts)))
             if not v > self.free_tol:
-                out.append((pred.name, v))
+                out.append((contact.name, v))
+        for name, v in zip(self.extra_names, self.extra_values(q, pts)):
+            if not v > 0:
+                out.append((name, float(v)))
         return out
 
     def in_bounds(self, q):
@@ -195,26 +479,42 @@ class Spatial321Model:
                 & np.all(q[..., :3] <= self.position_max, axis=-1)
                 & np.all(np.abs(q[..., 3:]) <= self.angle_max, axis=-1))
 
+    def leg_lengths(self, q):
+        """Leg lengths ``(..., 6)`` in the order of :data:`LEGS`."""
+        pts = self.points(q)
+        return np.stack([np.linalg.norm(pts[b] - pts[a], axis=-1) for a, b in LEGS], axis=-1)
+
+    @property
+    def scale(self):
+        """Metric weights of (x, y, z, roll, pitch, yaw): metres, and metres per radian."""
+        return np.r_[1.0, 1.0, 1.0, [self.angle_scale] * 3]
+
+    def lower(self):
+        return np.r_[self.position_min, [-self.angle_max] * 3]
+
+    def upper(self):
+        return np.r_[self.position_max, [self.angle_max] * 3]
+
     def sample(self, rng, n):
-        lo = np.r_[self.position_min, [-self.angle_max] * 3]
-        hi = np.r_[self.position_max, [self.angle_max] * 3]
-        return rng.uniform(lo, hi, (n, 6))
+        return rng.uniform(self.lower(), self.upper(), (n, 6))
 
     def world_points(self, q):
         """Platform and base points for drawing one pose ``q``."""
         return {k: np.asarray(v) for k, v in self.points(np.asarray(q, dtype=float)).items()}
 
 
-def demo_model(boxes=DEMO_BOXES):
+def demo_model(boxes=DEMO_BOXES, leg_limits=DEMO_LEG_LIMITS):
     return Spatial321Model(DEMO_BASE, DEMO_PLATFORM, tuple(boxes), DEMO_BOUNDS['position_min'],
-                           DEMO_BOUNDS['position_max'], math.radians(DEMO_BOUNDS['angle_max_deg']))
+                           DEMO_BOUNDS['position_max'], math.radians(DEMO_BOUNDS['angle_max_deg']),
+                           leg_limits)
 
 
-def load_scene(path):
+def load_scene(path, leg_limits=None):
     """Spatial scene JSON: ``boxes`` [{"center": [x, y, z], "size": [sx, sy, sz]}, ...],
     optional ``base`` {"1": [x, y, z], ... "6": ...}, ``platform`` {"7": ..., "8": ...,
     "9": ...} (platform frame, P7 at the origin), ``bounds`` {"position_min", "position_max",
-    "angle_max_deg"}; missing keys take the demo values."""
+    "angle_max_deg"}, ``leg_length`` {"min": m, "max": m} or null (no limits); missing keys
+    take the demo values. ``leg_limits`` (min, max) overrides the file."""
     path = Path(path)
     data = load_json_object(path, 'scene file')
 
@@ -227,6 +527,9 @@ def load_scene(path):
             raise UserError(f'scene file {path}: {what} must be three finite numbers')
         return tuple(a)
 
+    unknown = set(data) - {'boxes', 'base', 'platform', 'bounds', 'leg_length'}
+    if unknown:
+        raise UserError(f'scene file {path}: unknown keys {sorted(unknown)}')
     boxes = []
     for i, b in enumerate(data.get('boxes', [])):
         if not isinstance(b, dict) or set(b) != {'center', 'size'}:
@@ -247,27 +550,24 @@ def load_scene(path):
     amax = bounds['angle_max_deg']
     if not isinstance(amax, (int, float)) or not 0 < amax <= 90:
         raise UserError(f'scene file {path}: bounds angle_max_deg must be in (0, 90]')
-    return Spatial321Model(base, plat, tuple(boxes), pmin, pmax, math.radians(amax))
+    if leg_limits is None:
+        legs = data.get('leg_length', {'min': DEMO_LEG_LIMITS[0], 'max': DEMO_LEG_LIMITS[1]})
+        if legs is not None:
+            if not isinstance(legs, dict) or set(legs) != {'min', 'max'} or not all(
+                    isinstance(legs[k], (int, float)) for k in legs):
+                raise UserError(f'scene file {path}: leg_length must be {{"min": m, "max": m}} '
+                                'or null')
+            leg_limits = (legs['min'], legs['max'])
+    try:
+        return Spatial321Model(base, plat, tuple(boxes), pmin, pmax, math.radians(amax),
+                               leg_limits)
+    except UserError as err:
+        raise UserError(f'scene file {path}: {err}') from None
 
 
 # ---------------------------------------------------------------------------------------------
-# Sampled roadmap on the simplified Voronoi diagram
+# Dense path checking
 # ---------------------------------------------------------------------------------------------
-
-@dataclass
-class SpatialPlanResult:
-    status: str
-    reason: str = ''
-    path: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
-    waypoints: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
-    min_rho: float = float('nan')
-    planning_time: float = 0.0
-    stats: dict = field(default_factory=dict)
-
-    @property
-    def found(self):
-        return self.status == 'ok'
-
 
 def densify6(waypoints, step, dangle):
     """Samples along a 6-D polyline: |d position| <= step, every |d angle| <= dangle."""
@@ -284,14 +584,30 @@ def densify6(waypoints, step, dangle):
     return samples, np.r_[seg, len(d) - 1]
 
 
+def bad_samples(model, samples):
+    """Per consecutive sample pair of a dense polyline: refused? ``(n - 1,)`` bool.
+
+    A pair is refused if either sample has rho <= free_tol (contact, containment, bounds, leg
+    limit), a pure-condition determinant changes sign or vanishes (singularity crossed), or two
+    legs pass through each other (``[a b c d]`` changes sign while their projections cross).
+    """
+    rho = model.rho(samples)
+    signs = model.singular_signs(samples)
+    thin, cross = model.thin_state(samples)
+    bad_pt = (rho <= model.free_tol) | np.any(signs == 0, axis=0)
+    bad = bad_pt[1:] | bad_pt[:-1] | np.any(signs[:, 1:] != signs[:, :-1], axis=0)
+    bad |= np.any((thin[:, 1:] != thin[:, :-1]) & (cross[:, 1:] | cross[:, :-1]), axis=0)
+    return bad, rho
+
+
 def check_path6(model, waypoints, step=0.005, dangle=0.01):
     """Dense check of a 6-D polyline: ``(ok, min_rho, bad segment indices)``."""
     samples, seg = densify6(waypoints, step, dangle)
-    rho = model.rho(samples)
-    signs = model.singular_signs(samples)
-    bad = (rho <= model.free_tol) | np.any(signs != signs[:, :1], axis=0) \
-        | np.any(signs == 0, axis=0)
-    return (not bad.any()), float(rho.min()), np.unique(seg[bad])
+    if len(samples) < 2:
+        rho = model.rho(samples)
+        return bool(np.all(rho > model.free_tol)), float(rho.min()), np.zeros(0, np.int64)
+    bad, rho = bad_samples(model, samples)
+    return (not bad.any()), float(rho.min()), np.unique(seg[:-1][bad])
 
 
 def validate_pose(model, q, name):
@@ -308,185 +624,6 @@ def validate_pose(model, q, name):
             f'{n} (rho = {v + 0.0:.3g})' for n, v in failures))
 
 
-class SampledVoronoiPlanner:
-    """Sampled roadmap on the simplified Voronoi diagram of a :class:`Spatial321Model`."""
-
-    def __init__(self, model, n_samples=3000, k=10, seed=0, check_step=0.005,
-                 check_dangle=0.01, angle_scale=0.5, max_iterations=2000):
-        if n_samples < 10 or k < 2:
-            raise UserError('need at least 10 samples and 2 neighbours')
-        self.model = model
-        self.n_samples = int(n_samples)
-        self.k = int(k)
-        self.rng = np.random.default_rng(seed)
-        self.check_step = float(check_step)
-        self.check_dangle = float(check_dangle)
-        self.scale = np.r_[1.0, 1.0, 1.0, [angle_scale] * 3]
-        self.max_iterations = int(max_iterations)
-
-    def retract(self, q, max_len=0.5, steps=8):
-        """Move each pose along the gradient of rho until the active determinant changes.
-
-        Returns the diagram points ``(M, 6)``. A pose already at a tie stays put; a pose whose
-        ray leaves the bounds first stops at the last in-bounds point before that.
-        """
-        m = self.model
-        q = np.asarray(q, dtype=float)
-        rho0, act0 = m.evaluate(q)
-        eps = 1e-5
-        grads = np.empty_like(q)
-        for i in range(6):
-            dq = np.zeros(6)
-            dq[i] = eps / self.scale[i]
-            grads[:, i] = (m.rho(q + dq) - m.rho(q - dq)) / (2 * eps)
-        norm = np.linalg.norm(grads, axis=1)
-        d = np.where(norm[:, None] > 0, grads / np.maximum(norm, 1e-300)[:, None], 0.0)
-        d = d / self.scale            # direction in pose coordinates (unit scaled length)
-
-        def same(t):
-            p = q + t[:, None] * d
-            rho, act = m.evaluate(p)
-            return (act == act0) & (rho >= rho0) & m.in_bounds(p)
-
-        lo = np.zeros(len(q))
-        hi = np.full(len(q), np.nan)
-        t = np.full(len(q), max_len / 2 ** steps)
-        for _ in range(steps + 1):       # expand until the active leaf changes
-            open_ = np.isnan(hi)
-            if not open_.any():
-                break
-            ok = same(t)
-            lo = np.where(open_ & ok, t, lo)
-            hi = np.where(open_ & ~ok, t, hi)
-            t = np.where(open_ & ok, 2 * t, t)
-        found = ~np.isnan(hi)
-        hi = np.where(found, hi, lo)
-        for _ in range(10):              # bisection onto the tie
-            mid = 0.5 * (lo + hi)
-            ok = same(mid)
-            lo = np.where(found & ok, mid, lo)
-            hi = np.where(found & ~ok, mid, hi)
-        return q + lo[:, None] * d
-
-    def plan(self, start, goal, progress=None):
-        t0 = time.perf_counter()
-        tick = progress or (lambda s: None)
-        m = self.model
-        start = np.asarray(start, dtype=float)
-        goal = np.asarray(goal, dtype=float)
-        validate_pose(m, start, 'start')
-        validate_pose(m, goal, 'goal')
-        stats = {}
-
-        def result(status, reason='', **kw):
-            return SpatialPlanResult(status, reason, planning_time=time.perf_counter() - t0,
-                                     stats=stats, **kw)
-
-        s_sign, g_sign = m.singular_signs(start), m.singular_signs(goal)
-        if np.any(s_sign != g_sign):
-            i = int(np.flatnonzero(s_sign != g_sign)[0])
-            det = '[' + ' '.join(f'p{k}' for k in m.singular_keys[i]) + ']'
-            return result('no_path', f'start and goal are in different singularity cells: '
-                          f'{det} changes sign, so every path crosses the singularity '
-                          f'{det} = 0')
-        tick('sample')
-        q = m.sample(self.rng, self.n_samples)
-        rho = m.rho(q)
-        cell = m.singular_signs(q)
-        keep = (rho > m.free_tol) & np.all(cell == s_sign[:, None], axis=0)
-        q = q[keep]
-        tick('retract')
-        nodes = self.retract(np.vstack([start, goal, q]))
-        # Start and goal join the roadmap through their retraction segments.
-        s_node, g_node = 0, 1
-        stats.update(samples=self.n_samples, free_samples=int(keep.sum()),
-                     roadmap_nodes=len(nodes))
-        tick('roadmap')
-        pts = nodes * self.scale
-        tree = cKDTree(pts)
-        dist, nbr = tree.query(pts, k=min(self.k + 1, len(pts)))
-        a = np.repeat(np.arange(len(pts)), nbr.shape[1] - 1)
-        b = nbr[:, 1:].ravel()
-        w = dist[:, 1:].ravel()
-        ok = np.isfinite(w) & (a != b)
-        a, b, w = a[ok], b[ok], np.maximum(w[ok], 1e-12)
-        lo, hi = np.minimum(a, b), np.maximum(a, b)
-        key = np.unique(lo * len(pts) + hi, return_index=True)[1]
-        a, b, w = lo[key], hi[key], w[key]
-        stats['roadmap_edges'] = len(a)
-        # Retraction segments of start and goal must be free too.
-        ends = []
-        for q_in, node in ((start, s_node), (goal, g_node)):
-            seg = np.vstack([q_in, nodes[node]])
-            ends.append(seg if check_path6(m, seg, self.check_step, self.check_dangle)[0]
-                        else seg[:1])
-        if len(ends[0]) == 1:
-            nodes[s_node] = start
-        if len(ends[1]) == 1:
-            nodes[g_node] = goal
-        tick('search')
-        # Edge clearance: rho at both ends and the midpoint. Search first among edges keeping
-        # half the best achievable bottleneck clearance, then among all (as in the planar
-        # planner): paths stay near the diagram's high-clearance part.
-        node_rho = m.rho(nodes)
-        clear = np.minimum(np.minimum(node_rho[a], node_rho[b]),
-                           m.rho(0.5 * (nodes[a] + nodes[b])))
-        bottleneck = VoronoiPlanner._bottleneck(len(pts), a, b, np.maximum(clear, 0.0),
-                                                s_node, g_node)
-        stats['bottleneck_rho'] = float(bottleneck)
-        alive = clear > m.free_tol
-        verified = np.zeros(len(a), dtype=bool)
-        rejected, it = 0, 0
-        seq = None
-        for tau in ([0.5 * bottleneck, 0.0] if bottleneck > 0 else []):
-            while seq is None and it < self.max_iterations:
-                it += 1
-                e = np.flatnonzero(alive & (clear >= tau))
-                graph = csr_matrix((np.r_[w[e], w[e]], (np.r_[a[e], b[e]], np.r_[b[e], a[e]])),
-                                   shape=(len(pts), len(pts)))
-                _, pred = dijkstra(graph, directed=True, indices=s_node,
-                                   return_predecessors=True)
-                if pred[g_node] < 0:
-                    break
-                cand = [g_node]
-                while cand[-1] != s_node:
-                    cand.append(int(pred[cand[-1]]))
-                cand = cand[::-1]
-                eids = [int(np.flatnonzero((a == min(u, v)) & (b == max(u, v)))[0])
-                        for u, v in zip(cand[:-1], cand[1:])]
-                failed = []
-                for i, ei in enumerate(eids):
-                    if verified[ei]:
-                        continue
-                    seg = nodes[[cand[i], cand[i + 1]]]
-                    if check_path6(m, seg, self.check_step, self.check_dangle)[0]:
-                        verified[ei] = True
-                    else:
-                        failed.append(ei)
-                if not failed:
-                    seq = cand
-                    break
-                alive[failed] = False
-                rejected += len(failed)
-        if seq is None:
-            if it >= self.max_iterations:
-                raise RuntimeError('lazy search did not converge')
-            stats.update(search_iterations=it, rejected_edges=rejected)
-            return result('no_path', 'no verified roadmap connection between the start '
-                          f'and goal retractions ({self.n_samples} samples, k = {self.k}); '
-                          'more samples may find one')
-        stats.update(search_iterations=it, rejected_edges=rejected)
-        tick('verify')
-        way = np.vstack([ends[0][:-1] if len(ends[0]) > 1 else np.zeros((0, 6)),
-                         nodes[seq],
-                         ends[1][::-1][1:] if len(ends[1]) > 1 else np.zeros((0, 6))])
-        ok, min_rho, bad = check_path6(m, way, self.check_step, self.check_dangle)
-        if not ok:
-            raise RuntimeError(f'assembled path failed dense checking at {bad[:5]}')
-        path, _ = densify6(way, self.check_step, self.check_dangle)
-        return result('ok', path=path, waypoints=way, min_rho=min_rho)
-
-
 # ---------------------------------------------------------------------------------------------
 # CLI body (paramotion voronoi plan321)
 # ---------------------------------------------------------------------------------------------
@@ -498,19 +635,50 @@ def _pose_arg(values, default):
     return np.r_[v[:3], np.radians(v[3:])]
 
 
+def _json_value(v):
+    if isinstance(v, (np.integer,)):
+        return int(v)
+    if isinstance(v, (np.floating, float)):
+        return None if math.isnan(v) else float(v)
+    return v
+
+
 def run_cli(args, out):
     """Plan between two poses and write ``out/result.json`` and ``out/figure321.png``."""
     from tqdm import tqdm
 
-    model = load_scene(args.scene) if args.scene else demo_model()
+    from paramotion.voronoi.spatial321_roadmap import DiagramRoadmapPlanner
+
+    if args.no_leg_limits and (args.leg_min is not None or args.leg_max is not None):
+        raise UserError('--no-leg-limits cannot be combined with --leg-min/--leg-max')
+    limits = None
+    if args.leg_min is not None or args.leg_max is not None:
+        if args.leg_min is None or args.leg_max is None:
+            raise UserError('--leg-min and --leg-max go together')
+        limits = (args.leg_min, args.leg_max)
+        if not (0 <= args.leg_min < args.leg_max and math.isfinite(args.leg_max)):
+            raise UserError(f'--leg-min {args.leg_min} --leg-max {args.leg_max}: need '
+                            '0 <= min < max (m)')
+    if args.scene:
+        model = load_scene(args.scene, leg_limits=limits)
+        if args.no_leg_limits:
+            model = Spatial321Model(model.base, model.platform, model.boxes,
+                                    model.position_min, model.position_max, model.angle_max)
+    else:
+        model = demo_model(leg_limits=None if args.no_leg_limits
+                           else (limits or DEMO_LEG_LIMITS))
     start = _pose_arg(args.start, DEMO_START)
     goal = _pose_arg(args.goal, DEMO_GOAL)
     validate_pose(model, start, 'start')
     validate_pose(model, goal, 'goal')
     if args.samples < 10:
         raise UserError(f'--samples {args.samples}: need at least 10')
-    planner = SampledVoronoiPlanner(model, n_samples=args.samples, seed=args.seed)
-    stages = ('sample', 'retract', 'roadmap', 'search', 'verify')
+    if args.neighbours < 2:
+        raise UserError(f'--neighbours {args.neighbours}: need at least 2')
+    planner = DiagramRoadmapPlanner(model, n_samples=args.samples, k=args.neighbours,
+                                    seed=args.seed, probe_step=args.probe_step,
+                                    max_gap=args.max_gap)
+    stages = ('sample', 'retract', 'search', 'verify')
     bar = tqdm(total=len(stages), desc='voronoi plan321', unit='stage', leave=False)
 
     def progress(stage):
@@ -525,18 +693,30 @@ def run_cli(args, out):
         'status': res.status, 'reason': res.reason,
         'start': start.tolist(), 'goal': goal.tolist(),
         'pose_note': '[x, y, z] of P7 in m, [roll, pitch, yaw] ZYX in rad',
+        'leg_length_limits_m': None if model.leg_limits is None else list(model.leg_limits),
         'straight_line_free': bool(straight_ok),
         'min_rho': None if math.isnan(res.min_rho) else res.min_rho,
         'planning_time_s': res.planning_time,
-        'stats': {k: int(v) if isinstance(v, (int, np.integer)) else v
-                  for k, v in res.stats.items()},
+        'resolution': {
+            'samples': planner.n_samples, 'sampler': f'scrambled Halton, seed {planner.seed}',
+            'neighbours': planner.k, 'probe_step': planner.probe_step,
+            'max_gap': planner.max_gap, 'tie_tol': planner.tie_tol,
+            'diagram_tol': planner.diagram_tol, 'check_step_m': planner.check_step,
+            'check_dangle_rad': planner.check_dangle,
+            'metric_note': 'scaled metric: m for positions, angle_scale = '
+                           f'{model.angle_scale} m per rad for angles',
+            'no_path_means': 'start and goal retractions in different connected components '
+                             'of the diagram roadmap at this resolution (or different '
+                             'singularity cells, a certificate)'},
+        'stats': {k: _json_value(v) for k, v in res.stats.items()},
         'waypoints': np.round(res.waypoints, 9).tolist(),
         'path': np.round(res.path, 9).tolist(),
     }
     (out / 'result.json').write_text(json.dumps(doc) + '\n')
     figure321(model, out / 'figure321.png', res.path if res.found else None, start, goal)
     if res.found:
-        print(f'path found: {len(res.path)} poses, min rho {res.min_rho:.4g}, planning time '
+        print(f'path found: {len(res.path)} poses, min rho {res.min_rho:.4g}, on the diagram '
+              f'{res.stats["on_diagram_fraction"]:.0%} of its length, planning time '
               f'{res.planning_time:.2f} s (straight line free: {straight_ok}) -> {out}')
         return 0
     print(f'no path: {res.reason} -> {out}')
@@ -552,8 +732,8 @@ def figure321(model, path_file, path, start, goal):
 
     fig = plt.figure(figsize=(9, 8))
     ax = fig.add_subplot(projection='3d')
-    for verts, tris, _ in model.meshes:
-        ax.add_collection3d(Poly3DCollection(verts[tris], facecolor='tab:gray', alpha=0.35,
+    for verts, quads, _ in model.meshes:
+        ax.add_collection3d(Poly3DCollection(verts[quads], facecolor='tab:gray', alpha=0.35,
                                              edgecolor='k', linewidth=0.3))
 
     def draw(q, color, alpha, lw):
