@@ -27,9 +27,9 @@ from paramotion.scenario_io import add_output_args, output_dir, write_json
 
 # The graph (nodes, parameters, recorded topics) is described once, in
 # launch/coverage.launch.xml; this runner composes it in one process.
-# /sonar/ranges (16 Range messages per sweep) is not recorded by default: in a lock-step Graph
-# most of each burst is dropped before it reaches the recorder (see docs/coverage.md); the same
-# sweep is recorded whole as /sonar/scan. Add it with --record-topics if wanted.
+# /sonar/ranges (16 Range messages per sweep) is not recorded by default, since the same sweep
+# is recorded as /sonar/scan; add it with --record-topics if wanted (the recorder keeps every
+# message of each burst: test/test_recording_loss.py).
 LAUNCH_FILE = 'coverage'
 TOPICS = recorded_topics(load_launch(LAUNCH_FILE, {'record': True}))
 

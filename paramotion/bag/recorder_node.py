@@ -5,8 +5,21 @@ which is sim time by default, as rosbag2 does with ``use_sim_time``. Subscriptio
 QoS to the publishers and the publishers' profiles are stored as ``offered_qos_profiles``, so a
 player can republish latched topics as latched. Chunks are flushed every ``flush_period``
 seconds of wall time: a recorder killed with SIGKILL loses at most that much.
+
+No silent loss: every subscription keeps *all* samples (``KEEP_ALL``) rather than the last N,
+so a burst (the sonar ring's 16 Range messages per sweep) or a recorder that falls behind for a
+while never overflows its queue; samples wait in the reader until the executor takes them.
+What this guarantees depends on what the publisher offers: a *reliable* publisher's messages
+are all recorded once matched (DDS retransmits), in one process and across processes. A
+*best-effort* publisher (sensor data) gets no retransmission: in one process nothing is lost
+(the data never leaves the participant), across processes a sample dropped by the transport
+(loopback socket or shared-memory segment full under load) is gone, as with ``ros2 bag
+record``. Samples published before the recorder matched a publisher are not recorded, unless
+the publisher is transient-local (latched); free-running simulators hold time at zero until
+the recorder listens (``wait_for_clock_subscribers``/``wait_for_matched``).
 """
 from rclpy.clock import Clock, ClockType
+from rclpy.qos import HistoryPolicy
 
 from paramotion.bag.qos_yaml import adapted_subscription_qos
 from paramotion.bag.writer import BagWriter
@@ -75,6 +88,7 @@ class BagRecorderNode(ParamotionNode):
         """Start recording ``topic`` of ``msgtype`` with the publishers' ``offered`` QoS."""
         self.writer.add_topic(topic, msgtype, offered)
         qos = adapted_subscription_qos(offered)
+        qos.history = HistoryPolicy.KEEP_ALL   # never overwrite a sample not yet written
         self._subs[topic] = self.create_subscription(
             message_class(msgtype), topic, lambda data, t=topic: self._on_message(t, data),
             qos, raw=True)
