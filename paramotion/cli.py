@@ -20,6 +20,7 @@ SUBCOMMAND_MODULES = [
     'cable_robot_pkg.cdrpm.cli',         # paramotion workspace ...
     'paramotion.voronoi.cli',             # paramotion voronoi ...
     'paramotion.launch',                  # paramotion launch FILE|NAME [name:=value ...]
+    'paramotion.demo',                    # paramotion demo (README command 1)
 ]
 
 

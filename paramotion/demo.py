@@ -1,0 +1,208 @@
+"""``paramotion demo``: the coverage system of Acar, Choset and Lee, run the way a ROS 2 user
+runs it: ``launch/coverage.launch.xml`` started as one process per node (simulator, sonar
+ring, planner, monitor and the bag recorder) on the world shipped in the package, the simulator
+free-running at ``--rtf`` times real time.
+
+It watches the graph over DDS (``/clock``, ``/coverage/status``,
+``/coverage/covered_fraction``) until the planner reports the end of coverage (``done``, or
+``stuck``/``incomplete``) or ``--max-wall`` seconds pass, stops every process with Ctrl-C
+(SIGINT) as ``paramotion launch`` does, and then works from the bag alone: the robot path from
+``/coverage/ground_truth``, the decomposition graph from ``/coverage/graph``, the covered
+fraction recomputed from the path (the monitor's accounting), written to ``DIR/result.json`` and
+``DIR/coverage.png`` beside ``DIR/bag/``.
+"""
+import datetime
+import json
+import math
+import os
+import threading
+import time
+from pathlib import Path
+
+from paramotion.errors import UserError
+from paramotion.scenario_io import add_output_args, output_dir, write_json
+
+END_STATES = ('done', 'stuck', 'incomplete')
+
+
+def _watch(launcher, max_wall, echo):
+    """Spin a watcher node until the planner ends, ``max_wall`` passes or a node dies."""
+    import rclpy
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.executors import SingleThreadedExecutor
+    from rosgraph_msgs.msg import Clock
+    from std_msgs.msg import Float64
+
+    from paramotion.qos import CLOCK_QOS, LATCHED_QOS
+    seen = {'sim_time': 0.0, 'state': None, 'message': '', 'fraction': None}
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    node = rclpy.create_node('paramotion_demo_watcher', context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+
+    def on_status(msg):
+        for st in msg.status:
+            values = {kv.key: kv.value for kv in st.values}
+            seen['state'] = values.get('state_now', seen['state'])
+            seen['message'] = st.message
+    node.create_subscription(Clock, '/clock', lambda m: seen.update(
+        sim_time=m.clock.sec + m.clock.nanosec * 1e-9), CLOCK_QOS)
+    node.create_subscription(DiagnosticArray, '/coverage/status', on_status, LATCHED_QOS)
+    node.create_subscription(Float64, '/coverage/covered_fraction',
+                             lambda m: seen.update(fraction=m.data), LATCHED_QOS)
+    start = time.monotonic()
+    last_report = start
+    try:
+        while time.monotonic() - start < max_wall:
+            executor.spin_once(timeout_sec=0.05)
+            if not launcher.poll():
+                break
+            if seen['state'] in END_STATES:
+                break
+            if time.monotonic() - last_report >= 10.0:
+                last_report = time.monotonic()
+                frac = seen['fraction']
+                echo(f"[demo] {time.monotonic() - start:5.1f} s wall, {seen['sim_time']:6.1f} s "
+                     f"sim, planner {seen['state']}, covered "
+                     + ('-' if frac is None else f'{100 * frac:.1f} %'))
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+    seen['wall_s'] = time.monotonic() - start
+    return seen
+
+
+def _from_bag(bag_dir, world, radius, delta):
+    """Path, last graph and covered fraction of CVS, from the bag alone."""
+    import numpy as np
+
+    from coverage_pkg.cvs import CoverableSet, CoverageAccumulator
+    from paramotion.bag.reader import deserialize, read_messages
+    path, graph, fractions = [], None, []
+    for m in read_messages(bag_dir, ['/coverage/ground_truth', '/coverage/graph',
+                                     '/coverage/covered_fraction']):
+        msg = deserialize(m)
+        if m.topic == '/coverage/ground_truth':
+            p = msg.pose.pose.position
+            if math.isfinite(p.x) and math.isfinite(p.y):
+                path.append((p.x, p.y))
+        elif m.topic == '/coverage/graph':
+            graph = json.loads(msg.data)
+        else:
+            fractions.append(msg.data)
+    cvs = CoverableSet(world, radius, delta)
+    acc = CoverageAccumulator(cvs)
+    for x, y in path:
+        acc.add_pose(x, y, min_step=0.1)
+    arr = np.asarray(path) if path else np.zeros((0, 2))
+    length = float(np.sum(np.hypot(*np.diff(arr, axis=0).T))) if len(arr) > 1 else 0.0
+    return {'path': arr, 'graph': graph, 'fraction': acc.fraction(),
+            'monitor_fraction': fractions[-1] if fractions else None,
+            'uncovered': acc.uncovered_points(), 'path_length_m': length,
+            'lower_bound_path_m': cvs.lower_bound_path(), 'cvs_area_m2': cvs.area}
+
+
+def run_demo(out, rtf=6.0, max_wall=120.0, world=None, overwrite=False, echo=print):
+    """Launch, watch, stop, evaluate from the bag; returns the result dict."""
+    from coverage_pkg.scenario import _shift_graph
+    from coverage_pkg.world import load_world
+    from paramotion import launch_xml
+    from paramotion.bag.reader import bag_info
+    from paramotion.launch import Launcher
+
+    with output_dir(out, overwrite) as tmp:
+        args = {'record': True, 'bag': str(tmp / 'bag'), 'real_time_factor': float(rtf)}
+        if world:
+            args['world'] = str(world)
+        desc = launch_xml.load('coverage', args)
+        sim = desc.node('coverage_sim').params
+        world_path, radius = sim['world'], float(sim['radius'])
+        delta = float(desc.node('coverage_monitor').params['delta'])
+        world_obj = load_world(world_path, radius=radius)
+        launcher = Launcher(desc, log_dir=tmp / 'logs',
+                            echo=lambda line: None).prepare()
+        lock = threading.Lock()
+
+        def say(line):
+            with lock:
+                echo(line)
+        say(f'[demo] {desc.path.name}: {len(desc.nodes)} processes '
+            f"({', '.join(p.label for p in launcher.procs)}), world {world_obj.name}, "
+            f'real_time_factor {rtf:g}; node output in {Path(out) / "logs"}')
+        launcher.start()
+        try:
+            seen = _watch(launcher, max_wall, say)
+        finally:
+            codes = launcher.shutdown()
+        failure = launcher.failure_message()
+        if failure:
+            raise UserError(f'{failure}; see {Path(out) / "logs"}')
+        info = bag_info(tmp / 'bag')
+        ev = _from_bag(tmp / 'bag', world_obj, radius, delta)
+        sx, sy = map(float, world_obj.start)
+        graph = _shift_graph(ev['graph'], sx, sy) if ev['graph'] else None
+        state = seen['state']
+        result = {
+            'mode': 'processes (paramotion launch coverage)',
+            'world': world_path, 'world_name': world_obj.name, 'radius_m': radius,
+            'detector_range_m': delta, 'real_time_factor': rtf,
+            'outcome': 'complete' if state == 'done' else (
+                state if state in END_STATES else 'stopped_at_wall_limit'),
+            'planner_state': state, 'planner_message': seen['message'],
+            'sim_time_s': seen['sim_time'], 'wall_time_s': seen['wall_s'],
+            'covered_fraction_of_cvs': ev['fraction'],
+            'monitor_covered_fraction': ev['monitor_fraction'],
+            'cvs_area_m2': ev['cvs_area_m2'], 'path_length_m': ev['path_length_m'],
+            'lower_bound_path_m': ev['lower_bound_path_m'],
+            'exit_codes': codes, 'bag_messages': info.message_count,
+            'bag_complete': info.complete,
+            'bag_topics': {t: v.count for t, v in sorted(info.topics.items())},
+            'frames': 'path and graph in map',
+        }
+        write_json(tmp / 'result.json', result)
+        from coverage_pkg.figure import render_coverage
+        title = (f"{world_obj.name}, one process per node at {rtf:g}x: path "
+                 f"{ev['path_length_m']:.1f} m, covered {100 * ev['fraction']:.2f}% of CVS, "
+                 f"{result['outcome']}")
+        render_coverage(tmp / 'coverage.png', world_obj, ev['path'].tolist(), graph, None,
+                        ev['uncovered'], title)
+    return result
+
+
+def _run(args):
+    if not (math.isfinite(args.rtf) and 0 < args.rtf <= 50):
+        raise UserError(f'--rtf {args.rtf}: must be in (0, 50]')
+    if not (math.isfinite(args.max_wall) and args.max_wall > 0):
+        raise UserError(f'--max-wall {args.max_wall}: must be a positive number of seconds')
+    if args.world and not os.path.isfile(args.world):
+        raise UserError(f'--world {args.world}: no such file')
+    r = run_demo(args.out, args.rtf, args.max_wall, args.world, args.overwrite)
+    out = Path(args.out)
+    print(f"coverage {r['world_name']} (one process per node): {r['outcome']} after "
+          f"{r['sim_time_s']:.1f} s sim time in {r['wall_time_s']:.1f} s wall")
+    print(f"covered {100 * r['covered_fraction_of_cvs']:.2f}% of CVS "
+          f"({r['cvs_area_m2']:.1f} m^2); path {r['path_length_m']:.1f} m (lower bound "
+          f"{r['lower_bound_path_m']:.1f} m)")
+    print(f"bag: {out / 'bag'} ({r['bag_messages']} messages); result: "
+          f"{out / 'result.json'}; picture: {out / 'coverage.png'}; logs: {out / 'logs'}")
+    return 0 if r['outcome'] == 'complete' else 1
+
+
+def register(subparsers):
+    """Add ``paramotion demo``."""
+    stamp = datetime.datetime.now().strftime('%Y%m%d-%H%M%S')
+    parser = subparsers.add_parser(
+        'demo', help='the coverage system, one process per node, recorded (about a minute)',
+        description='Launch launch/coverage.launch.xml (simulator, sonar, planner, monitor, '
+        'recorder: one process each) on the packaged world, stop when the planner is done, '
+        'and write bag/, result.json and coverage.png.')
+    add_output_args(parser, default_out=os.path.join('bags', 'runs', f'demo-{stamp}'))
+    parser.add_argument('--rtf', type=float, default=6.0,
+                        help='real-time factor of the free-running simulator (default 6)')
+    parser.add_argument('--max-wall', type=float, default=120.0,
+                        help='stop after this many wall seconds if not done (default 120)')
+    parser.add_argument('--world', default=None,
+                        help='world JSON (default: the packaged two_rooms)')
+    parser.set_defaults(func=_run)
