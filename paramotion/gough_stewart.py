@@ -24,6 +24,7 @@ Everything is numpy only (no rclpy) so that it can be unit-tested and reused alo
 ``python -m climber_pkg.fk_benchmark`` prints solves per second and iteration counts.
 """
 import math
+import os
 import threading
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -586,23 +587,62 @@ def forward_kinematics(geom, lengths, guess_position, guess_rotation, tol=1e-12,
     return _new_tuple(FKResult, (np.array((r0, r1, r2)), rot, it, converged, cond))
 
 
+#: Backends of :func:`forward_kinematics_batch`; ``PARAMOTION_BACKEND`` (``numba`` or
+#: ``numpy``) overrides ``'auto'``, which means numba when it is installed.
+BACKENDS = ('auto', 'numba', 'numpy')
+
+
+def resolve_backend(backend='auto'):
+    """``'numba'`` or ``'numpy'``: the compiled kernels when asked for and importable."""
+    if backend not in BACKENDS:
+        raise ValueError(f'backend must be one of {BACKENDS}, got {backend!r}')
+    if backend == 'auto':
+        backend = os.environ.get('PARAMOTION_BACKEND', 'auto').strip().lower() or 'auto'
+        if backend not in BACKENDS:
+            raise ValueError(f'PARAMOTION_BACKEND must be numba or numpy, got {backend!r}')
+    if backend == 'numpy':
+        return 'numpy'
+    try:
+        import numba  # noqa: F401
+    except ImportError:
+        if backend == 'numba':
+            raise
+        return 'numpy'
+    return 'numba'
+
+
 def forward_kinematics_batch(geom, lengths, guess_positions, guess_rotations, tol=1e-12,
-                             max_iter=30, max_condition=DEFAULT_MAX_CONDITION):
+                             max_iter=30, max_condition=DEFAULT_MAX_CONDITION, backend='auto'):
     """Vectorised :func:`forward_kinematics` for N length sets (N, 6) at once.
 
     Does not raise per pose: poses with lengths outside the stroke, a singular Jacobian, too
     large a condition number or no convergence come back with ``converged`` False (and
-    ``singular`` True for the singular ones).
+    ``singular`` True for the singular ones). ``backend``: ``'numba'`` (one compiled loop
+    over the poses, :mod:`paramotion.gough_stewart_numba`), ``'numpy'`` (Newton-Raphson
+    vectorised over the poses with stacked 7 x 7 solves) or ``'auto'`` (see
+    :func:`resolve_backend`). Both run the same iteration; results agree to rounding.
     """
     c = np.asarray(lengths, dtype=float).reshape(-1, 6)
     n = c.shape[0]
     r = np.array(guess_positions, dtype=float).reshape(n, 3)
     e = quaternion_from_matrix(np.asarray(guess_rotations, dtype=float).reshape(n, 3, 3))
-    base = geom.base_anchors
-    plat = geom.platform_anchors
     valid = (np.all(np.isfinite(c), axis=1) & np.all(c >= geom.leg_min, axis=1)
              & np.all(c <= geom.leg_max, axis=1))
     c = np.where(valid[:, None], c, 1.0)
+    if resolve_backend(backend) == 'numba':
+        from paramotion.gough_stewart_numba import fk_batch_kernel
+        rot = np.empty((n, 3, 3))
+        iterations = np.zeros(n, dtype=int)
+        converged = np.zeros(n, dtype=bool)
+        singular = np.zeros(n, dtype=bool)
+        cond = np.empty(n)
+        fk_batch_kernel(np.ascontiguousarray(c), r, np.ascontiguousarray(e), valid,
+                        geom.platform_anchors, geom.base_anchors, geom.characteristic_length,
+                        float(tol), int(max_iter), float(max_condition), rot, iterations,
+                        converged, singular, cond)
+        return BatchFKResult(r, rot, iterations, converged, cond, singular)
+    base = geom.base_anchors
+    plat = geom.platform_anchors
     c2 = c * c
     iterations = np.zeros(n, dtype=int)
     done = ~valid
