@@ -226,6 +226,9 @@ def run_node(node_cls, args=None):
     node = None
     try:
         node = node_cls()
+        # A node on sim time in its own process warns once if its simulator stops.
+        from paramotion.clock_watchdog import attach
+        attach(node)
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
