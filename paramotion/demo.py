@@ -104,7 +104,7 @@ def _from_bag(bag_dir, world, radius, delta):
             'lower_bound_path_m': cvs.lower_bound_path(), 'cvs_area_m2': cvs.area}
 
 
-def run_demo(out, rtf=6.0, max_wall=120.0, world=None, overwrite=False, echo=print):
+def run_demo(out, rtf=2.0, max_wall=240.0, world=None, overwrite=False, echo=print):
     """Launch, watch, stop, evaluate from the bag; returns the result dict."""
     from coverage_pkg.scenario import _shift_graph
     from coverage_pkg.world import load_world
@@ -194,15 +194,16 @@ def register(subparsers):
     """Add ``paramotion demo``."""
     stamp = datetime.datetime.now().strftime('%Y%m%d-%H%M%S')
     parser = subparsers.add_parser(
-        'demo', help='the coverage system, one process per node, recorded (about a minute)',
+        'demo', help='the coverage system, one process per node, recorded',
         description='Launch launch/coverage.launch.xml (simulator, sonar, planner, monitor, '
         'recorder: one process each) on the packaged world, stop when the planner is done, '
         'and write bag/, result.json and coverage.png.')
     add_output_args(parser, default_out=os.path.join('bags', 'runs', f'demo-{stamp}'))
-    parser.add_argument('--rtf', type=float, default=6.0,
-                        help='real-time factor of the free-running simulator (default 6)')
-    parser.add_argument('--max-wall', type=float, default=120.0,
-                        help='stop after this many wall seconds if not done (default 120)')
+    parser.add_argument('--rtf', type=float, default=2.0,
+                        help='real-time factor of the free-running simulator (default 2; '
+                        'above about 3 the sonar and planner processes fall behind on 2 cores)')
+    parser.add_argument('--max-wall', type=float, default=240.0,
+                        help='stop after this many wall seconds if not done (default 240)')
     parser.add_argument('--world', default=None,
                         help='world JSON (default: the packaged two_rooms)')
     parser.set_defaults(func=_run)

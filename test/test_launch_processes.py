@@ -168,3 +168,23 @@ def test_respawn_restarts_a_dying_node_and_ctrl_c_stops_everything(tmp_path):
         out = _check_clean_stop(launch)
     assert 'user interrupted with ctrl-c (SIGINT)' in out
     assert 'paramotion launch: error' not in out
+
+
+def test_demo_runs_the_coverage_processes_and_writes_its_outputs(tmp_path):
+    """README command 1, cut short by its wall limit: every process stops cleanly, the bag is
+    complete, and result.json / coverage.png come from the bag (the covered fraction
+    recomputed from the recorded path agrees with the monitor's last published value)."""
+    import json
+
+    from paramotion.demo import run_demo
+    out = tmp_path / 'demo'
+    r = run_demo(out, rtf=4.0, max_wall=12.0, echo=lambda line: None)
+    assert r['outcome'] == 'stopped_at_wall_limit'
+    assert set(r['exit_codes'].values()) == {0} and len(r['exit_codes']) == 5
+    assert r['bag_complete'] and r['bag_topics']['/coverage/ground_truth'] > 20
+    assert 0.0 < r['covered_fraction_of_cvs'] < 1.0 and r['sim_time_s'] > 5.0
+    assert r['monitor_covered_fraction'] is not None
+    assert abs(r['covered_fraction_of_cvs'] - r['monitor_covered_fraction']) < 0.05
+    assert json.loads((out / 'result.json').read_text())['outcome'] == r['outcome']
+    assert (out / 'coverage.png').stat().st_size > 10_000
+    assert (out / 'logs' / 'coverage_planner-3.log').is_file()
