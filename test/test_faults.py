@@ -209,3 +209,63 @@ def test_recorder_of_the_coverage_graph_killed_with_sigkill_leaves_readable_chun
     assert times == sorted(times) and times[-1] > 2_000_000_000
     reindex(bag)
     assert (bag / 'metadata.yaml').is_file()   # rosbag2 tools can open it again
+
+
+def test_fast_tracker_killed_controllers_hold_then_recover_on_restart(tmp_path):
+    """FAST graph at 0.1x real time (what the five processes keep up with on 2 cores).
+    SIGKILL the optical tracker: the isolation controller holds the legs (same leg command,
+    zero rate) and the cable controller holds the winches (same cable command, zero winch
+    speed), each with a WARN diagnostic; restart the tracker: both say they resumed and their
+    commands move again."""
+    import numpy as np
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+    from geometry_msgs.msg import PoseStamped
+    from sensor_msgs.msg import JointState
+
+    from paramotion.qos import SENSOR_QOS, STATE_QOS
+    with launched_graph('fast', {'real_time_factor': 0.1}, tmp_path) as (launcher, log, w):
+        diags, legs, cables, tracked = [], [], [], []
+        w.subscribe(DiagnosticArray, '/diagnostics',
+                    lambda m: diags.extend((w.sim_time, d) for d in m.status), STATE_QOS)
+        w.subscribe(JointState, '/fast/legs/command', lambda m: legs.append(
+            (w.sim_time, np.array(m.position), np.array(m.velocity))), STATE_QOS)
+        w.subscribe(JointState, '/fast/cables/command', lambda m: cables.append(
+            (w.sim_time, np.array(m.position), np.array(m.velocity))), STATE_QOS)
+        w.subscribe(PoseStamped, '/fast/tracker/trolley',
+                    lambda m: tracked.append(w.sim_time), SENSOR_QOS)
+
+        def said(node, level, text, since):
+            return any(t >= since and d.name == node and d.level == level and text in d.message
+                       for t, d in diags)
+        # Running under control first.
+        assert w.spin_until(lambda: w.sim_time > 1.0 and len(legs) > 50 and len(cables) > 20,
+                            90), log.text()[-3000:]
+        tracker = proc(launcher, 'fast_tracker')
+        kill(tracker)
+        t_kill = w.sim_time
+        warn = DiagnosticStatus.WARN
+        assert w.spin_until(lambda: said('fast_isolation_controller', warn, 'holding the legs',
+                                         t_kill) and
+                            said('fast_cable_controller', warn, 'holding the winches', t_kill),
+                            60), ([d.message for _, d in diags[-10:]], log.text()[-3000:])
+        # Holding: the commands published from now on repeat the last one, at zero rate.
+        n_legs, n_cables = len(legs), len(cables)
+        assert w.spin_until(lambda: len(legs) >= n_legs + 10 and len(cables) >= n_cables + 5,
+                            60), log.text()[-3000:]
+        for series, n in ((legs, n_legs), (cables, n_cables)):
+            held = series[n:]
+            assert all(np.array_equal(p, held[0][1]) for _, p, _ in held), series[n - 1:n + 3]
+            assert all(not np.any(v) for _, _, v in held)
+        # Restart the tracker: both resume and move their commands again.
+        t_restart = w.sim_time
+        tracker.start()
+        ok = DiagnosticStatus.OK
+        assert w.spin_until(lambda: said('fast_isolation_controller', ok, 'resumed', t_restart)
+                            and said('fast_cable_controller', ok, 'resumed', t_restart), 90), \
+            ([d.message for _, d in diags[-10:]], log.text()[-3000:])
+        n_legs, n_cables = len(legs), len(cables)
+        assert w.spin_until(lambda: len(legs) >= n_legs + 20 and len(cables) >= n_cables + 5,
+                            60), log.text()[-3000:]
+        assert any(not np.array_equal(p, legs[n_legs][1]) for _, p, _ in legs[n_legs:])
+        assert any(not np.array_equal(p, cables[n_cables][1]) for _, p, _ in cables[n_cables:])
+        print(f'tracker killed at sim {t_kill:.2f} s, restarted at {t_restart:.2f} s')

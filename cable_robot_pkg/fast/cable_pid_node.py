@@ -153,6 +153,15 @@ class CablePidNode(ParamotionNode):
                        f'{self.params.dropout_timeout:g} s: holding the winches')
             command, rates = self.winches.command, np.zeros(len(self.names))
         else:
+            if self.holding:
+                self.get_logger().info('trolley tracker measurements back: winch control '
+                                       'resumed')
+                arr = DiagnosticArray()
+                arr.header.stamp = stamp
+                arr.status = [DiagnosticStatus(level=DiagnosticStatus.OK,
+                                               name='fast_cable_controller',
+                                               message='trolley measurements back: resumed')]
+                self.diag_pub.publish(arr)
             self.holding = False
             error = lengths - cfg.cables.lengths(*self.trolley)
             command, rates = self.winches.update(self.dt, feedforward, error, self.tensions)
