@@ -675,7 +675,12 @@ class CoveragePlanner:
         via = self._route_waypoints(d, node)
         path_cells = self._path_via(d, mcp, cost[2], via, gi)
         kind_mask = d['undone_lap'] if node.kind == 'vast' else d['undone_gvd']
-        path_cells = path_cells + self._extend(gi, kind_mask & (d['owner'] == node.id))
+        # A lap is followed 4 m at a time; a boundary or GVD piece 1 m at a time, so that the
+        # robot turns back as soon as what it was going to see has been seen (the need is
+        # re-evaluated at every plan).
+        lap_goal = bool(d['lap'][gi] and d['vast'][gi])
+        path_cells = path_cells + self._extend(gi, kind_mask & (d['owner'] == node.id),
+                                               max_cells=40 if lap_goal else 10)
         pts = d['to_world']([p[0] for p in path_cells], [p[1] for p in path_cells])
         self.path = [tuple(p) for p in pts]
         self.path_i = 0
