@@ -264,7 +264,7 @@ def test_retraction_climbs_rho_until_two_contacts_tie():
 @pytest.fixture(scope='module')
 def demo_result():
     model = demo_model()
-    planner = DiagramRoadmapPlanner(model, n_samples=300, seed=0)
+    planner = DiagramRoadmapPlanner(model, n_samples=200, seed=0)
     return model, planner, planner.plan(DEMO_START, DEMO_GOAL)
 
 

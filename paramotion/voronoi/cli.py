@@ -66,6 +66,8 @@ def register(subparsers):
     p.add_argument('--leg-max', type=float, help='maximum leg length, m (default: scene, '
                    'demo 1.55)')
     p.add_argument('--no-leg-limits', action='store_true', help='legs of any length')
+    p.add_argument('--repeats', type=int, default=1,
+                   help='plan this many times and print the median planning time')
     p.add_argument('--out', required=True, help='output directory')
     p.set_defaults(func=_plan321)
 

@@ -33,6 +33,7 @@ Configuration ``q = (x, y, z, roll, pitch, yaw)``: position of P7 (m) and ZYX Eu
 """
 import json
 import math
+import statistics
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -47,6 +48,7 @@ from paramotion.voronoi.predicates import (
     Not,
     Or,
     Xor,
+    bracket4,
     evaluate_determinants,
     fuse,
     pure_condition_free,
@@ -74,7 +76,7 @@ DEMO_LEG_LIMITS = (0.35, 1.55)
 ANGLE_SCALE = 0.5
 _DERIVED = 1000        # first label of the derived points of the leg-leg contacts
 _CHUNK = 1 << 12
-_SMALL = 128     # below this batch size the flat evaluator is faster
+_SMALL = 256     # below this batch size the flat evaluator is faster
 
 
 def rpy_matrix(rpy):
@@ -194,9 +196,10 @@ class FlatContacts:
             starts = np.r_[0, np.cumsum(counts)[:-1]]
             self.groups.append((op == 'min', ids, kids, starts, counts))
 
-    def determinants(self, pts, n):
-        """All determinants ``(n_keys, n)`` from the labelled points ``(n, 3)`` each."""
-        P = np.stack([np.broadcast_to(pts[lab], (n, 3)) for lab in self.labels])
+    def determinants(self, P):
+        """All determinants ``(n_keys, n)`` from the point array ``P`` (n_labels, n, 3)."""
+        if P.shape[1] >= _SMALL:            # row by row: no (n_keys, n, 3) temporaries
+            return np.stack([bracket4(*(P[i] for i in row)) for row in self.key_idx])
         a, b, c, d = (P[self.key_idx[:, i]] for i in range(4))
         u, v, w = b - a, c - a, d - a
         return -(u[..., 0] * (v[..., 1] * w[..., 2] - v[..., 2] * w[..., 1])
@@ -310,8 +313,14 @@ class Spatial321Model:
         self.program = compile_rho(self.tree)
         # Each contact compiles to one child (a max node) of the root min node, in order.
         assert len(self.program.root.children) == len(contacts)
-        self.flat = FlatContacts(self.program, sorted({lab for key in self.program.keys
-                                                      for lab in key}))
+        fixed_labels = sorted(self.fixed)
+        self._fixed_arr = np.array([self.fixed[k] for k in fixed_labels])
+        self._moving_arr = np.array([self.moving[k] for k in (7, 8, 9)])
+        self.labels = fixed_labels + [7, 8, 9] + list(range(
+            _DERIVED, _DERIVED + 2 * len(self.segment_pairs)))
+        where = {lab: i for i, lab in enumerate(self.labels)}
+        self._pair_idx = np.array([[where[k] for k in s + t] for s, t in self.segment_pairs])
+        self.flat = FlatContacts(self.program, self.labels)
         self.contact_programs = [compile_rho(c.tree) for c in contacts]
         self.singular_keys = [tuple(sorted(f)) for f in PURE_CONDITION]
         self.coplanar_keys = [tuple(sorted(s + t)) for s, t in self.segment_pairs]
@@ -334,20 +343,34 @@ class Spatial321Model:
         return names
 
     # -- geometry ------------------------------------------------------------------------------
-    def points(self, q):
+    def point_array(self, q):
+        """All labelled points at poses ``q`` (n, 6) as one array ``(n_labels, n, 3)`` in the
+        order of ``self.labels``: fixed (base, box corners), platform, derived."""
+        q = np.asarray(q, dtype=float).reshape(-1, 6)
+        n = len(q)
+        rot = rpy_matrix(q[:, 3:6])
+        moving = q[None, :, :3] + np.einsum('nij,kj->kni', rot, self._moving_arr)
+        fixed = np.broadcast_to(self._fixed_arr[:, None, :], (len(self._fixed_arr), n, 3))
+        P = np.concatenate([fixed, moving, np.empty((2 * len(self.segment_pairs), n, 3))])
+        a, b, c, d = (P[self._pair_idx[:, i]] for i in range(4))
+        u, v = b - a, d - c
+        nrm = np.stack([u[..., 1] * v[..., 2] - u[..., 2] * v[..., 1],
+                        u[..., 2] * v[..., 0] - u[..., 0] * v[..., 2],
+                        u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]], axis=-1)
+        length = np.sqrt(np.einsum('pni,pni->pn', nrm, nrm))[..., None]
+        nrm = np.divide(nrm, length, out=np.zeros_like(nrm), where=length > 0)
+        nrm *= self.derived_length
+        k0 = len(self._fixed_arr) + 3
+        P[k0::2] = a + nrm
+        P[k0 + 1::2] = c + nrm
+        return P
+
+    def points(self, q, P=None):
         """Labelled points at poses ``q`` (..., 6): base, box corners, platform, derived."""
         q = np.asarray(q, dtype=float)
-        rot = rpy_matrix(q[..., 3:6])
-        out = {k: np.broadcast_to(v, q.shape[:-1] + (3,)) for k, v in self.fixed.items()}
-        for k, v in self.moving.items():
-            out[k] = q[..., :3] + rot @ v
-        for i, ((a, b), (c, d)) in enumerate(self.segment_pairs):
-            n = np.cross(out[b] - out[a], out[d] - out[c])
-            norm = np.linalg.norm(n, axis=-1, keepdims=True)
-            n = np.divide(n, norm, out=np.zeros_like(n), where=norm > 0) * self.derived_length
-            out[_DERIVED + 2 * i] = out[a] + n
-            out[_DERIVED + 2 * i + 1] = out[c] + n
-        return out
+        P = self.point_array(q) if P is None else P
+        shape = q.shape[:-1] + (3,)
+        return {lab: P[i].reshape(shape) for i, lab in enumerate(self.labels)}
 
     def extra_values(self, q, pts=None):
         """Bounds and leg-length margins ``(n_extra, ...)`` (positive = satisfied)."""
@@ -383,13 +406,13 @@ class Spatial321Model:
         prog = self.program
 
         def fn(c):
-            pts = self.points(c)
+            P = self.point_array(c)
+            dets = self.flat.determinants(P)
             if len(c) < _SMALL:
-                vals, _ = self.flat.evaluate(self.flat.determinants(pts, len(c)), codes=False)
-                r = vals.min(axis=0)
+                r = self.flat.evaluate(dets, codes=False)[0].min(axis=0)
             else:
-                r = prog.rho(evaluate_determinants(prog.keys, pts, False))
-            return np.minimum(r, self.extra_values(c, pts).min(axis=0))
+                r = prog.rho(dets)
+            return np.minimum(r, self.extra_values(c, self.points(c, P)).min(axis=0))
         return self._chunked(q, fn, [(float, ())])
 
     def contact_values(self, q):
@@ -405,23 +428,23 @@ class Spatial321Model:
         n_extra = len(self.extra_names)
 
         def fn(c):
-            pts = self.points(c)
+            P = self.point_array(c)
+            dets = self.flat.determinants(P)
             if len(c) < _SMALL:
-                vals, codes = self.flat.evaluate(self.flat.determinants(pts, len(c)))
+                vals, codes = self.flat.evaluate(dets)
             else:
-                vals, codes = self._tree_contacts(pts)
-            extra = self.extra_values(c, pts)
+                vals, codes = self._tree_contacts(dets)
+            extra = self.extra_values(c, self.points(c, P))
             ecodes = 2 * n_det + np.arange(n_extra, dtype=np.int32)[:, None]
             return (np.concatenate([vals, extra]).T,
                     np.concatenate([codes, np.broadcast_to(ecodes, extra.shape)]).T)
         n = len(self.contacts) + n_extra
         return self._chunked(q, fn, [(float, (n,)), (np.int32, (n,))])
 
-    def _tree_contacts(self, pts):
+    def _tree_contacts(self, dets):
         """Contact values and leaf codes node by node (faster than :class:`FlatContacts`
         for large batches, where numpy's per-call overhead no longer matters)."""
         prog = self.program
-        dets = evaluate_determinants(prog.keys, pts, False)
 
         def ev(node):
             if isinstance(node, (int, np.integer)):
@@ -687,6 +710,13 @@ def run_cli(args, out):
 
     res = planner.plan(start, goal, progress)
     bar.close()
+    if args.repeats < 1:
+        raise UserError(f'--repeats {args.repeats}: need at least 1')
+    times = [res.planning_time] + [planner.plan(start, goal).planning_time
+                                   for _ in range(args.repeats - 1)]
+    if args.repeats > 1:
+        print(f'planning time over {len(times)} runs: median {statistics.median(times):.2f} s '
+              f'(min {min(times):.2f}, max {max(times):.2f})')
     straight_ok = check_path6(model, np.vstack([start, goal]))[0]
     out.mkdir(parents=True, exist_ok=True)
     doc = {

@@ -34,6 +34,7 @@ from scipy.spatial import cKDTree
 from scipy.stats import qmc
 
 from paramotion.errors import UserError
+from paramotion.voronoi.predicates import bracket4
 from paramotion.voronoi.spatial321 import (
     bad_samples,
     check_path6,
@@ -54,22 +55,36 @@ def _two_smallest(values, leaves):
     return i1, values[i1, cols], i2, other[i2, cols]
 
 
-def _gradients(model, q, rows, h=1e-6):
-    """Forward-difference gradients (in scaled coordinates) of contact rows ``rows`` (R, M)
-    at poses ``q`` (M, 6): returns (R, M, 6). Determinants are polynomials in the pose, so a
-    step of 1e-6 is accurate to ~1e-6 relative away from kinks."""
+def _leaf_gradients(model, q, codes, h=1e-6):
+    """Forward-difference gradients (scaled coordinates) of the signed leaves ``codes`` (M,)
+    at poses ``q`` (M, 6): (M, 6). A contact's value equals its active leaf's near the pose,
+    so this is the contact's gradient; only that one determinant (or margin) is evaluated at
+    the six shifted poses. Determinants are polynomials in the pose: a step of 1e-6 is
+    accurate to ~1e-6 relative."""
     q = np.asarray(q, dtype=float)
-    scale = model.scale
-    shifts = np.vstack([np.zeros(6), np.eye(6) * (h / scale)[:, None]])
-    qs = q[None, :, :] + shifts[:, None, :]
-    vals, _ = model.contact_values(qs.reshape(-1, 6))
-    vals = vals.reshape(vals.shape[0], 7, len(q))
-    cols = np.arange(len(q))
-    out = []
-    for r in rows:
-        v = vals[r, :, cols]                      # (M, 7)
-        out.append((v[:, 1:] - v[:, :1]) / h)
-    return np.stack(out)
+    m = len(q)
+    shifts = np.vstack([np.zeros(6), np.eye(6) * (h / model.scale)[:, None]])
+    qs = (q[None, :, :] + shifts[:, None, :]).reshape(-1, 6)      # (7 M, 6)
+    n_det = len(model.program.keys)
+    codes = np.asarray(codes)
+    vals = np.zeros((7, m))
+    det = codes < 2 * n_det
+    if det.any():
+        cols = np.flatnonzero(det)
+        sub = qs.reshape(7, m, 6)[:, cols].reshape(-1, 6)
+        P = model.point_array(sub)                                  # (L, 7 k, 3)
+        key = np.tile(model.flat.key_idx[codes[cols] // 2], (7, 1))  # (7 k, 4)
+        j = np.arange(len(sub))
+        a, b, c, d = (P[key[:, i], j] for i in range(4))
+        v = bracket4(a, b, c, d) * np.tile(np.where(codes[cols] % 2 == 1, 1.0, -1.0), 7)
+        vals[:, cols] = v.reshape(7, len(cols))
+    if (~det).any():
+        cols = np.flatnonzero(~det)
+        sub = qs.reshape(7, m, 6)[:, cols].reshape(-1, 6)
+        ex = model.extra_values(sub)                                # (n_extra, 7 k)
+        row = np.tile(codes[cols] - 2 * n_det, 7)
+        vals[:, cols] = ex[row, np.arange(len(sub))].reshape(7, len(cols))
+    return ((vals[1:] - vals[:1]) / h).T
 
 
 def tie_measure(model, q, grads=False):
@@ -82,7 +97,9 @@ def tie_measure(model, q, grads=False):
     q = np.atleast_2d(np.asarray(q, dtype=float))
     vals, leaves = model.contact_values(q)
     i1, f1, i2, f2 = _two_smallest(vals, leaves)
-    g = _gradients(model, q, (i1, i2))
+    cols = np.arange(len(q))
+    g = _leaf_gradients(model, np.vstack([q, q]), np.r_[leaves[i1, cols], leaves[i2, cols]])
+    g = g.reshape(2, len(q), 6)
     gnorm = np.linalg.norm(g[1] - g[0], axis=1)
     gap = f2 - f1
     dist = np.where(gnorm > 0, gap / np.maximum(gnorm, 1e-300), np.inf)
@@ -221,7 +238,8 @@ class DiagramRoadmapPlanner:
     """Roadmap on the simplified Voronoi diagram of a 3-2-1 model (see module docstring)."""
 
     def __init__(self, model, n_samples=400, k=8, seed=0, check_step=0.005, check_dangle=0.01,
-                 tie_tol=1e-3, diagram_tol=2e-3, probe_step=0.01, max_gap=0.03):
+                 tie_tol=1e-3, diagram_tol=2e-3, probe_step=0.01, max_gap=0.03,
+                 batch_edges=40):
         if n_samples < 10 or k < 2:
             raise UserError(f'samples {n_samples}, neighbours {k}: need at least 10 samples '
                             'and 2 neighbours')
@@ -240,6 +258,7 @@ class DiagramRoadmapPlanner:
         self.diagram_tol = float(diagram_tol)
         self.probe_step = float(probe_step)
         self.max_gap = float(max_gap)
+        self.batch_edges = int(batch_edges)
 
     # -- samples -------------------------------------------------------------------------------
     def samples(self):
@@ -401,6 +420,13 @@ class DiagramRoadmapPlanner:
             cand = cand[::-1]
             eids = [edge_of[(min(u, v), max(u, v))] for u, v in zip(cand[:-1], cand[1:])]
             todo = [i for i in eids if i not in polys]
+            # Batch: also trace untested edges at the nodes of this path (numpy works per
+            # batch, so they come almost free and spare later search iterations).
+            on_path = np.zeros(len(pts), dtype=bool)
+            on_path[cand] = True
+            extra = np.flatnonzero(alive & (on_path[a] | on_path[b]))
+            extra = [int(i) for i in extra if int(i) not in polys and int(i) not in todo]
+            todo += extra[:self.batch_edges]
             traced = self.trace(pts[a[todo]], pts[b[todo]]) if todo else []
             good = [i for i, p in zip(todo, traced) if p is not None]
             free = self._free_polylines([traced[todo.index(i)] for i in good])
@@ -413,7 +439,7 @@ class DiagramRoadmapPlanner:
                 else:
                     failed.append(i)
             alive[failed] = False
-            if not failed:
+            if all(i in polys for i in eids):
                 seq = cand
         stats.update(candidate_edges=len(a), traced_edges=len(polys),
                      refused_edges=int((~alive).sum()), search_iterations=it,
