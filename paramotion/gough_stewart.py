@@ -33,6 +33,8 @@ import numpy as np
 from scipy.linalg.lapack import dgesdd as _dgesdd
 from scipy.linalg.lapack import dgesv as _dgesv
 
+from paramotion.backend import BACKENDS, resolve_backend  # noqa: F401 (re-exported)
+
 __all__ = [
     'DEFAULT_MAX_CONDITION', 'BatchFKResult', 'FKResult', 'GoughStewartGeometry',
     'SingularPoseError', 'UnreachablePoseError', 'check_lengths', 'check_pose',
@@ -403,7 +405,10 @@ class _FKCache:
         self.m_tail = -geom.base_anchors
         quad = _haug_quadratic_forms(plat) + plat[:, :, None, None] * np.eye(4)
         self.quad2 = np.ascontiguousarray((2.0 * quad).reshape(72, 4))
-        self.inv_rho = 1.0 / geom.characteristic_length
+        self.rho = geom.characteristic_length
+        self.inv_rho = 1.0 / self.rho
+        self.plat = np.ascontiguousarray(plat)
+        self.base = np.ascontiguousarray(geom.base_anchors)
         self.half_inv_rho = 0.5 * self.inv_rho
         self.t_base = np.zeros((7, 6))
         self.t_base[:3, :3] = np.eye(3)
@@ -457,7 +462,7 @@ def _fk_cache(geom):
 
 
 def forward_kinematics(geom, lengths, guess_position, guess_rotation, tol=1e-12, max_iter=30,
-                       max_condition=DEFAULT_MAX_CONDITION):
+                       max_condition=DEFAULT_MAX_CONDITION, backend='auto'):
     """Platform pose from the six leg lengths by Newton-Raphson on eq. (4), warm-started.
 
     Unknowns ``q = [x, y, z, e0, e1, e2, e3]``; equations: the six driving constraints
@@ -470,6 +475,12 @@ def forward_kinematics(geom, lengths, guess_position, guess_rotation, tol=1e-12,
     or the solution's homogenised Jacobian condition exceeds ``max_condition`` (near a
     singularity several assembly modes merge and the solution cannot be trusted). ``converged``
     is False when ``max_iter`` was exhausted.
+
+    ``backend`` (see :func:`paramotion.backend.resolve_backend`): ``'numba'`` runs the
+    iteration and the condition number in one compiled call
+    (:func:`paramotion.gough_stewart_numba.fk_single_kernel`, the batched solver's Newton
+    step); ``'numpy'`` the code below. Both stop at the same residual test; the poses agree to
+    rounding (~1e-15 m).
     """
     c = np.asarray(lengths, dtype=float).reshape(6)
     cl = c.tolist()
@@ -491,6 +502,12 @@ def forward_kinematics(geom, lengths, guess_position, guess_rotation, tol=1e-12,
         e0, e1, e2, e3 = known[1]
     else:
         e0, e1, e2, e3 = _quat_from_matrix_scalar(guess_rotation)
+    if (backend == 'auto' and _AUTO_BACKEND[0] == os.environ.get('PARAMOTION_BACKEND')
+            and _AUTO_BACKEND[1] == 'numba') or resolve_backend(backend) == 'numba':
+        if backend == 'auto':
+            _AUTO_BACKEND[:] = [os.environ.get('PARAMOTION_BACKEND'), 'numba']
+        return _forward_kinematics_numba(cache, c, r0, r1, r2, e0, e1, e2, e3, tol, max_iter,
+                                         max_condition)
     # Solve phi_q x = [|L|^2 - C^2, e.e - 1], i.e. x = 2 dq, so that phi_q's leg columns are
     # L itself. jac_n (phi_q's last row, e) doubles as the array of e.
     try:
@@ -587,28 +604,42 @@ def forward_kinematics(geom, lengths, guess_position, guess_rotation, tol=1e-12,
     return _new_tuple(FKResult, (np.array((r0, r1, r2)), rot, it, converged, cond))
 
 
-#: Backends of :func:`forward_kinematics_batch`; ``PARAMOTION_BACKEND`` (``numba`` or
-#: ``numpy``) overrides ``'auto'``, which means numba when it is installed.
-BACKENDS = ('auto', 'numba', 'numpy')
+#: (PARAMOTION_BACKEND value, backend) last resolved for 'auto' by forward_kinematics: saves
+#: the import check on every single solve.
+_AUTO_BACKEND = [None, None]
+_SINGLE_KERNEL = []
 
 
-def resolve_backend(backend='auto'):
-    """``'numba'`` or ``'numpy'``: the compiled kernels when asked for and importable."""
-    if backend not in BACKENDS:
-        raise ValueError(f'backend must be one of {BACKENDS}, got {backend!r}')
-    if backend == 'auto':
-        backend = os.environ.get('PARAMOTION_BACKEND', 'auto').strip().lower() or 'auto'
-        if backend not in BACKENDS:
-            raise ValueError(f'PARAMOTION_BACKEND must be numba or numpy, got {backend!r}')
-    if backend == 'numpy':
-        return 'numpy'
-    try:
-        import numba  # noqa: F401
-    except ImportError:
-        if backend == 'numba':
-            raise
-        return 'numpy'
-    return 'numba'
+def _forward_kinematics_numba(cache, c, r0, r1, r2, e0, e1, e2, e3, tol, max_iter,
+                              max_condition):
+    """:func:`forward_kinematics` by the compiled single-pose kernel (same errors/result)."""
+    if not _SINGLE_KERNEL:
+        from paramotion.gough_stewart_numba import fk_single_kernel
+        _SINGLE_KERNEL.append(fk_single_kernel)
+    (r0, r1, r2, e0, e1, e2, e3, it, converged, sing, cond) = _SINGLE_KERNEL[0](
+        c if c.flags.c_contiguous else c.copy(), r0, r1, r2, e0, e1, e2, e3, cache.plat,
+        cache.base, cache.rho, float(tol), int(max_iter))
+    if sing:
+        raise SingularPoseError('forward kinematics met a singular constraint Jacobian (or a '
+                                f'non-finite iterate) at iteration {it}')
+    if e0 != e0:
+        raise SingularPoseError('forward kinematics collapsed the Euler parameters to zero')
+    if not cond <= max_condition:
+        raise SingularPoseError(f'forward kinematics solution is near-singular: Jacobian '
+                                f'condition {cond:.3g} > {max_condition:.3g}')
+    a0, a1, a2, a3 = 2 * e0, 2 * e1, 2 * e2, 2 * e3
+    w = a0 * e0 - 1
+    p12, p03, p13, p02, p23, p01 = a1 * e2, a0 * e3, a1 * e3, a0 * e2, a2 * e3, a0 * e1
+    rot = np.array((w + a1 * e1, p12 - p03, p13 + p02, p12 + p03, w + a2 * e2, p23 - p01,
+                    p13 - p02, p23 + p01, w + a3 * e3)).reshape(3, 3)
+    rot.setflags(write=False)
+    if len(_RECENT_QUATERNIONS) >= 8:
+        try:
+            _RECENT_QUATERNIONS.pop(next(iter(_RECENT_QUATERNIONS)))
+        except (KeyError, StopIteration, RuntimeError):   # another thread got there first
+            pass
+    _RECENT_QUATERNIONS[id(rot)] = (rot, (e0, e1, e2, e3))
+    return _new_tuple(FKResult, (np.array((r0, r1, r2)), rot, it, converged, cond))
 
 
 def forward_kinematics_batch(geom, lengths, guess_positions, guess_rotations, tol=1e-12,

@@ -144,6 +144,79 @@ def _rotation(e0, e1, e2, e3, out):
 
 
 @njit(cache=True, nogil=True, error_model='numpy')
+def _newton(ck, r0, r1, r2, e0, e1, e2, e3, run, plat, base, tol, max_iter, a, legs, sq, jac,
+            phi):
+    """Newton-Raphson on eq. (4) for one pose (lengths ``ck``) from the guess ``r``, ``e``.
+
+    Returns ``(r0, r1, r2, e0, e1, e2, e3, iterations, converged, singular)``; ``run`` False
+    skips the iteration (invalid lengths). The other arrays are work space.
+    """
+    it = 0
+    ok = False
+    sing = False
+    while run:
+        _rotation(e0, e1, e2, e3, a)
+        res = 0.0
+        for i in range(6):
+            px, py, pz = plat[i, 0], plat[i, 1], plat[i, 2]
+            lx = r0 + (a[0, 0] * px + a[0, 1] * py + a[0, 2] * pz) - base[i, 0]
+            ly = r1 + (a[1, 0] * px + a[1, 1] * py + a[1, 2] * pz) - base[i, 1]
+            lz = r2 + (a[2, 0] * px + a[2, 1] * py + a[2, 2] * pz) - base[i, 2]
+            legs[i, 0] = lx
+            legs[i, 1] = ly
+            legs[i, 2] = lz
+            sq[i] = lx * lx + ly * ly + lz * lz
+            res_i = abs(sq[i] - ck[i] * ck[i]) / (2 * ck[i])
+            if not res_i <= res:         # NaN-propagating max
+                res = res_i
+        ee = e0 * e0 + e1 * e1 + e2 * e2 + e3 * e3
+        if res < tol and abs(ee - 1.0) < tol:
+            ok = True
+            break
+        if it >= max_iter:
+            break
+        # phi_q rows of the driving constraints: [L, L^T d(A p)/de] (_constraint_jacobian).
+        for i in range(6):
+            lx, ly, lz = legs[i, 0], legs[i, 1], legs[i, 2]
+            px, py, pz = plat[i, 0], plat[i, 1], plat[i, 2]
+            lp = lx * px + ly * py + lz * pz
+            cx = e2 * pz - e3 * py
+            cy = e3 * px - e1 * pz
+            cz = e1 * py - e2 * px
+            ep = e1 * px + e2 * py + e3 * pz
+            le = lx * e1 + ly * e2 + lz * e3
+            jac[i, 0] = lx
+            jac[i, 1] = ly
+            jac[i, 2] = lz
+            jac[i, 3] = 4 * e0 * lp + 2 * (lx * cx + ly * cy + lz * cz)
+            jac[i, 4] = 2 * ep * lx + 2 * le * px - 2 * e0 * (ly * pz - lz * py)
+            jac[i, 5] = 2 * ep * ly + 2 * le * py - 2 * e0 * (lz * px - lx * pz)
+            jac[i, 6] = 2 * ep * lz + 2 * le * pz - 2 * e0 * (lx * py - ly * px)
+            phi[i] = 0.5 * (sq[i] - ck[i] * ck[i])
+        jac[6, 0] = 0.0
+        jac[6, 1] = 0.0
+        jac[6, 2] = 0.0
+        jac[6, 3] = e0
+        jac[6, 4] = e1
+        jac[6, 5] = e2
+        jac[6, 6] = e3
+        phi[6] = 0.5 * (ee - 1.0)
+        det = _solve_pivoted(jac, phi)
+        if not math.isfinite(det) or abs(det) < 1e-300:
+            sing = True
+            break
+        r0 -= phi[0]
+        r1 -= phi[1]
+        r2 -= phi[2]
+        e0 -= phi[3]
+        e1 -= phi[4]
+        e2 -= phi[5]
+        e3 -= phi[6]
+        it += 1
+    return r0, r1, r2, e0, e1, e2, e3, it, ok, sing
+
+
+@njit(cache=True, nogil=True, error_model='numpy')
 def fk_batch_kernel(c, r, e, valid, plat, base, rho, tol, max_iter, max_condition,
                     rot, iterations, converged, singular, cond):
     """Solve every pose in place: ``r`` (N, 3), ``e`` (N, 4) in, solution out; see module."""
@@ -159,68 +232,9 @@ def fk_batch_kernel(c, r, e, valid, plat, base, rho, tol, max_iter, max_conditio
     for k in range(n):
         r0, r1, r2 = r[k, 0], r[k, 1], r[k, 2]
         e0, e1, e2, e3 = e[k, 0], e[k, 1], e[k, 2], e[k, 3]
-        it = 0
-        ok = False
-        sing = False
-        while valid[k]:
-            _rotation(e0, e1, e2, e3, a)
-            res = 0.0
-            for i in range(6):
-                px, py, pz = plat[i, 0], plat[i, 1], plat[i, 2]
-                lx = r0 + (a[0, 0] * px + a[0, 1] * py + a[0, 2] * pz) - base[i, 0]
-                ly = r1 + (a[1, 0] * px + a[1, 1] * py + a[1, 2] * pz) - base[i, 1]
-                lz = r2 + (a[2, 0] * px + a[2, 1] * py + a[2, 2] * pz) - base[i, 2]
-                legs[i, 0] = lx
-                legs[i, 1] = ly
-                legs[i, 2] = lz
-                sq[i] = lx * lx + ly * ly + lz * lz
-                res_i = abs(sq[i] - c[k, i] * c[k, i]) / (2 * c[k, i])
-                if not res_i <= res:         # NaN-propagating max
-                    res = res_i
-            ee = e0 * e0 + e1 * e1 + e2 * e2 + e3 * e3
-            if res < tol and abs(ee - 1.0) < tol:
-                ok = True
-                break
-            if it >= max_iter:
-                break
-            # phi_q rows of the driving constraints: [L, L^T d(A p)/de] (_constraint_jacobian).
-            for i in range(6):
-                lx, ly, lz = legs[i, 0], legs[i, 1], legs[i, 2]
-                px, py, pz = plat[i, 0], plat[i, 1], plat[i, 2]
-                lp = lx * px + ly * py + lz * pz
-                cx = e2 * pz - e3 * py
-                cy = e3 * px - e1 * pz
-                cz = e1 * py - e2 * px
-                ep = e1 * px + e2 * py + e3 * pz
-                le = lx * e1 + ly * e2 + lz * e3
-                jac[i, 0] = lx
-                jac[i, 1] = ly
-                jac[i, 2] = lz
-                jac[i, 3] = 4 * e0 * lp + 2 * (lx * cx + ly * cy + lz * cz)
-                jac[i, 4] = 2 * ep * lx + 2 * le * px - 2 * e0 * (ly * pz - lz * py)
-                jac[i, 5] = 2 * ep * ly + 2 * le * py - 2 * e0 * (lz * px - lx * pz)
-                jac[i, 6] = 2 * ep * lz + 2 * le * pz - 2 * e0 * (lx * py - ly * px)
-                phi[i] = 0.5 * (sq[i] - c[k, i] * c[k, i])
-            jac[6, 0] = 0.0
-            jac[6, 1] = 0.0
-            jac[6, 2] = 0.0
-            jac[6, 3] = e0
-            jac[6, 4] = e1
-            jac[6, 5] = e2
-            jac[6, 6] = e3
-            phi[6] = 0.5 * (ee - 1.0)
-            det = _solve_pivoted(jac, phi)
-            if not math.isfinite(det) or abs(det) < 1e-300:
-                sing = True
-                break
-            r0 -= phi[0]
-            r1 -= phi[1]
-            r2 -= phi[2]
-            e0 -= phi[3]
-            e1 -= phi[4]
-            e2 -= phi[5]
-            e3 -= phi[6]
-            it += 1
+        r0, r1, r2, e0, e1, e2, e3, it, ok, sing = _newton(
+            c[k], r0, r1, r2, e0, e1, e2, e3, valid[k], plat, base, tol, max_iter, a, legs, sq,
+            jac, phi)
         norm = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2 + e3 * e3)
         e0, e1, e2, e3 = e0 / norm, e1 / norm, e2 / norm, e3 / norm
         _rotation(e0, e1, e2, e3, a)
@@ -283,3 +297,95 @@ def fk_batch_kernel(c, r, e, valid, plat, base, rho, tol, max_iter, max_conditio
         near = valid[k] and not cond[k] <= max_condition
         singular[k] = sing_k[k] or near
         converged[k] = ok_k[k] and not near
+
+
+@njit(cache=True, nogil=True, error_model='numpy')
+def _condition_one(jt, norms):
+    """2-norm condition of one square matrix given by its columns ``jt[p]`` (overwritten).
+
+    One-sided Jacobi, the same rotations as :func:`_block_condition` on a single lane.
+    """
+    n = jt.shape[0]
+    for p in range(n):
+        s = 0.0
+        for i in range(n):
+            s += jt[p, i] * jt[p, i]
+        norms[p] = s
+    for _ in range(40):
+        rotated = False
+        for p in range(n - 1):
+            for q in range(p + 1, n):
+                g = 0.0
+                for i in range(n):
+                    g += jt[p, i] * jt[q, i]
+                alpha = norms[p]
+                beta = norms[q]
+                if not abs(g) > 1e-15 * math.sqrt(alpha * beta):
+                    continue
+                rotated = True
+                zeta = (beta - alpha) / (2.0 * g)
+                t = math.copysign(1.0, zeta) / (abs(zeta) + math.sqrt(1.0 + zeta * zeta))
+                cs = 1.0 / math.sqrt(1.0 + t * t)
+                sn = cs * t
+                for i in range(n):
+                    x = jt[p, i]
+                    y = jt[q, i]
+                    jt[p, i] = cs * x - sn * y
+                    jt[q, i] = sn * x + cs * y
+                norms[p] = alpha - t * g
+                norms[q] = beta + t * g
+        if not rotated:
+            break
+    smax = 0.0
+    smin = math.inf
+    for p in range(n):
+        s = 0.0
+        for i in range(n):
+            s += jt[p, i] * jt[p, i]
+        s = math.sqrt(s)
+        smax = max(smax, s)
+        smin = min(smin, s)
+    kc = smax / smin if smin > 0 else math.inf
+    return math.inf if math.isnan(kc) else kc
+
+
+@njit(cache=True, nogil=True, error_model='numpy')
+def fk_single_kernel(c, r0, r1, r2, e0, e1, e2, e3, plat, base, rho, tol, max_iter):
+    """One warm-started solve: ``(r0, r1, r2, e0, e1, e2, e3, iterations, converged,
+    singular, condition)`` with e normalised (NaN when it collapsed below 1e-6) and the
+    condition of the homogenised inverse Jacobian at the solution (inf when not finite)."""
+    a = np.empty((3, 3))
+    legs = np.empty((6, 3))
+    sq = np.empty(6)
+    jac = np.empty((7, 7))
+    phi = np.empty(7)
+    r0, r1, r2, e0, e1, e2, e3, it, ok, sing = _newton(
+        c, r0, r1, r2, e0, e1, e2, e3, True, plat, base, tol, max_iter, a, legs, sq, jac, phi)
+    cond = math.inf
+    if sing:
+        return r0, r1, r2, e0, e1, e2, e3, it, ok, sing, cond
+    norm = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2 + e3 * e3)
+    if not norm > 1e-6:
+        return r0, r1, r2, math.nan, math.nan, math.nan, math.nan, it, ok, sing, cond
+    e0, e1, e2, e3 = e0 / norm, e1 / norm, e2 / norm, e3 / norm
+    _rotation(e0, e1, e2, e3, a)
+    if math.isfinite(r0 + r1 + r2):
+        jt = np.empty((6, 6))
+        for i in range(6):
+            px, py, pz = plat[i, 0], plat[i, 1], plat[i, 2]
+            wx = a[0, 0] * px + a[0, 1] * py + a[0, 2] * pz
+            wy = a[1, 0] * px + a[1, 1] * py + a[1, 2] * pz
+            wz = a[2, 0] * px + a[2, 1] * py + a[2, 2] * pz
+            lx = r0 + wx - base[i, 0]
+            ly = r1 + wy - base[i, 1]
+            lz = r2 + wz - base[i, 2]
+            ln = math.sqrt(lx * lx + ly * ly + lz * lz)
+            ux, uy, uz = lx / ln, ly / ln, lz / ln
+            jt[0, i] = ux
+            jt[1, i] = uy
+            jt[2, i] = uz
+            jt[3, i] = (wy * uz - wz * uy) / rho
+            jt[4, i] = (wz * ux - wx * uz) / rho
+            jt[5, i] = (wx * uy - wy * ux) / rho
+        cond = _condition_one(jt, sq)
+    return r0, r1, r2, e0, e1, e2, e3, it, ok, sing, cond

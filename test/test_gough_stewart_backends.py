@@ -103,3 +103,49 @@ def test_backend_selection(monkeypatch):
         gs.resolve_backend()
     with pytest.raises(ValueError, match='backend'):
         gs.resolve_backend('cuda')
+
+
+def test_single_solver_backends_agree(geom):
+    rng = np.random.default_rng(14)
+    p, rot = _random_poses(geom, 300, rng)
+    lengths = gs.inverse_kinematics(geom, p, rot)
+    guess_p = p + rng.normal(scale=0.01, size=p.shape)
+    guess_r = gs.rotation_matrix(rng.normal(scale=2 * DEG, size=p.shape)) @ rot
+    for k in range(len(p)):
+        a = gs.forward_kinematics(geom, lengths[k], guess_p[k], guess_r[k], backend='numba')
+        b = gs.forward_kinematics(geom, lengths[k], guess_p[k], guess_r[k], backend='numpy')
+        assert a.converged and b.converged
+        assert abs(a.iterations - b.iterations) <= 1
+        assert np.abs(a.position - p[k]).max() < 1e-9 and np.abs(a.rotation - rot[k]).max() < 1e-9
+        assert np.abs(a.position - b.position).max() < 1e-11
+        assert np.abs(a.rotation - b.rotation).max() < 1e-11
+        assert a.jacobian_condition == pytest.approx(b.jacobian_condition, rel=1e-6)
+        assert not a.rotation.flags.writeable
+    # Warm-started from its own previous result along a path (the quaternion cache).
+    prev = gs.forward_kinematics(geom, lengths[0], p[0], rot[0], backend='numba')
+    for k in range(1, 20):
+        path_l = gs.inverse_kinematics(geom, p[0] + k * 1e-4, rot[0])
+        prev = gs.forward_kinematics(geom, path_l, prev.position, prev.rotation, backend='numba')
+        assert prev.converged and np.abs(prev.position - (p[0] + k * 1e-4)).max() < 1e-9
+
+
+@pytest.mark.parametrize('backend', BACKENDS)
+def test_single_solver_refusals(backend):
+    geom = gs.GoughStewartGeometry.from_rings(0.5, 0.5, 10 * DEG, 10 * DEG, 0.45, 1.5)
+    p = np.array([0, 0, 0.6])
+    near = gs.rotation_matrix([0, 0, 89.9 * DEG])
+    lengths = gs.inverse_kinematics(geom, p, near)
+    with pytest.raises(gs.SingularPoseError, match='near-singular'):
+        gs.forward_kinematics(geom, lengths, p + 0.001, near, backend=backend)
+    res = gs.forward_kinematics(geom, lengths, p + 0.001, near, max_condition=1e4,
+                                backend=backend)
+    assert res.converged and np.abs(res.position - p).max() < 1e-9
+    with pytest.raises(gs.UnreachablePoseError):
+        gs.forward_kinematics(geom, lengths + 1.0, p, near, backend=backend)
+    flat = gs.GoughStewartGeometry.from_rings(0.5, 0.3, 10 * DEG, 10 * DEG, 0.1, 1.0)
+    flat_l = gs.inverse_kinematics(flat, [0, 0, 0], np.eye(3))
+    with pytest.raises(gs.SingularPoseError):
+        gs.forward_kinematics(flat, flat_l, [0, 0, 0.01], np.eye(3), backend=backend)
+    few = gs.forward_kinematics(geom, gs.inverse_kinematics(geom, p, np.eye(3)), p + 0.05,
+                                np.eye(3), max_iter=1, backend=backend)
+    assert not few.converged and few.iterations == 1

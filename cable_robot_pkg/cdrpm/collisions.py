@@ -40,6 +40,7 @@ from cable_robot_pkg.cdrpm.kinematics import (
     as_pose_arrays,
     platform_extent,
 )
+from paramotion.backend import resolve_backend
 
 #: Collision types, in the order of the bit flags of :func:`classify_poses`.
 COLLISION_TYPES = ('cable_cable', 'cable_body', 'cable_workpiece', 'platform_workpiece')
@@ -261,16 +262,23 @@ class _SharedRotationScreen:
         return wn * wn <= self.limit * (np.abs(nn) * (1.0 + SCREEN_SLACK) + 1e-9)
 
 
-def classify_poses(desc, positions, rotations, chunk=DEFAULT_CHUNK, detail=False):
+def classify_poses(desc, positions, rotations, chunk=DEFAULT_CHUNK, detail=False,
+                   backend='auto'):
     """Collision status of N poses as bit flags (uint8, (N,)), processed in chunks.
 
     Flags: ``OUTSIDE`` (platform not inside the frame; then no other flag is set),
     ``CABLE_CABLE``, ``CABLE_BODY``, ``CABLE_WORKPIECE``, ``PLATFORM_WORKPIECE``. A pose with
     flags == 0 is accessible. With ``detail=True`` also returns per-pose boolean arrays
     ``pairs`` (N, P) and ``body`` (N, n), ``workpiece`` (N, n).
-    The result does not depend on ``chunk``.
+    The result does not depend on ``chunk`` nor on ``backend``: at one shared orientation,
+    without a workpiece and without ``detail``, ``'numba'`` (or ``'auto'`` with numba
+    installed, see :func:`paramotion.backend.resolve_backend`) runs the compiled kernel of
+    :mod:`.collisions_numba`; everything else runs the numpy code below.
     """
     positions, rotations = as_pose_arrays(positions, rotations)
+    if (not detail and rotations.ndim == 2 and desc.workpiece is None
+            and resolve_backend(backend) == 'numba'):
+        return _classify_shared_numba(desc, positions, rotations)
     total = positions.shape[0]
     flags = np.zeros(total, dtype=np.uint8)
     extra = None
@@ -291,6 +299,22 @@ def classify_poses(desc, positions, rotations, chunk=DEFAULT_CHUNK, detail=False
             for key, value in part.items():
                 extra[key][start:stop] = value
     return (flags, extra) if detail else flags
+
+
+def _classify_shared_numba(desc, positions, rot):
+    """Flags of poses at one orientation by the compiled kernel (same arithmetic as numpy)."""
+    from cable_robot_pkg.cdrpm.collisions_numba import classify_shared
+    flags = np.empty(positions.shape[0], dtype=np.uint8)
+    classify_shared(np.ascontiguousarray(positions), desc.platform_points @ rot.T,
+                    platform_extent(desc, rot), desc.frame_half_size + FRAME_TOL,
+                    np.ascontiguousarray(desc.frame_points, dtype=float),
+                    np.ascontiguousarray(desc.pair_i, dtype=np.int64),
+                    np.ascontiguousarray(desc.pair_j, dtype=np.int64),
+                    2.0 * desc.cable_radius, SCREEN_SLACK,
+                    np.ascontiguousarray(desc.platform_points, dtype=float),
+                    float(desc.body_delta), np.ascontiguousarray(rot, dtype=float),
+                    desc.platform_half_size - BODY_TOL, MIN_CABLE_LENGTH, flags)
+    return flags
 
 
 def _classify_chunk(desc, pos, rot, detail, screen=None):

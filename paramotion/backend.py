@@ -1,0 +1,30 @@
+"""Choice between the compiled (numba) kernels and their numpy fallbacks.
+
+numba is an optional speed-up: every kernel has a numpy implementation that computes the same
+thing and is tested against it. ``backend='auto'`` uses numba when it is importable, unless the
+environment variable ``PARAMOTION_BACKEND`` says ``numpy`` (or ``numba``, to insist).
+"""
+import os
+
+#: Accepted backends; ``PARAMOTION_BACKEND`` (``numba`` or
+#: ``numpy``) overrides ``'auto'``, which means numba when it is installed.
+BACKENDS = ('auto', 'numba', 'numpy')
+
+
+def resolve_backend(backend='auto'):
+    """``'numba'`` or ``'numpy'``: the compiled kernels when asked for and importable."""
+    if backend not in BACKENDS:
+        raise ValueError(f'backend must be one of {BACKENDS}, got {backend!r}')
+    if backend == 'auto':
+        backend = os.environ.get('PARAMOTION_BACKEND', 'auto').strip().lower() or 'auto'
+        if backend not in BACKENDS:
+            raise ValueError(f'PARAMOTION_BACKEND must be numba or numpy, got {backend!r}')
+    if backend == 'numpy':
+        return 'numpy'
+    try:
+        import numba  # noqa: F401
+    except ImportError:
+        if backend == 'numba':
+            raise
+        return 'numpy'
+    return 'numba'
