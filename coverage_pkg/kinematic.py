@@ -80,3 +80,36 @@ def run_kinematic(world, config=None, ring=None, dt=0.05, sweep_period=0.1, max_
             'path': path, 'path_length': length, 'covered_fraction': acc.fraction(),
             'cvs_area': cvs.area, 'lower_bound': cvs.lower_bound_path(), 'planner': planner,
             'accumulator': acc, 'update_times': update_times}
+
+
+def ratio_report(paths, config=None, baseline=False, max_time=3000.0, out=print):
+    """Cover every world file in ``paths`` in the ROS-free loop and print, per world, the
+    covered fraction of CVS, the path, the lower bound |CVS|/(2 delta) and their ratio (and,
+    with ``baseline``, the robot-size baseline's path and the extended/baseline ratio); then
+    the mean and median ratio. Returns the rows."""
+    from coverage_pkg.baseline import robot_size_config
+    from coverage_pkg.world import load_world
+    rows = []
+    for p in paths:
+        world = load_world(p, radius=(config or PlannerConfig()).radius)
+        r = run_kinematic(world, config, max_time=max_time)
+        row = {'world': world.name, 'state': r['state'], 'covered': r['covered_fraction'],
+               'path_m': r['path_length'], 'bound_m': r['lower_bound'],
+               'ratio': r['path_length'] / r['lower_bound']}
+        line = (f"{world.name}: {r['state']}, covered {100 * row['covered']:.2f} % of CVS, "
+                f"path {row['path_m']:.1f} m, bound {row['bound_m']:.1f} m, "
+                f"ratio {row['ratio']:.2f}")
+        if baseline:
+            b = run_kinematic(world, robot_size_config((config or PlannerConfig()).radius),
+                              max_time=4 * max_time)
+            row.update(base_covered=b['covered_fraction'], base_path_m=b['path_length'])
+            line += (f"; robot-size baseline {b['state']}, covered "
+                     f"{100 * b['covered_fraction']:.2f} %, path {b['path_length']:.1f} m, "
+                     f"extended/baseline {r['path_length'] / b['path_length']:.2f}")
+        out(line)
+        rows.append(row)
+    if rows:
+        ratios = [r['ratio'] for r in rows]
+        out(f'{len(rows)} worlds: mean ratio {np.mean(ratios):.2f}, median '
+            f'{np.median(ratios):.2f}, min covered {100 * min(r["covered"] for r in rows):.2f} %')
+    return rows

@@ -242,6 +242,25 @@ def register(subparsers):
     gen.add_argument('--kind', default=None, help='rooms, maze, halls or mixed (default: the '
                      'seed chooses)')
     gen.set_defaults(func=_worlds)
+    ratio = subparsers.add_parser(
+        'coverage-ratio', help='path / lower bound over a directory of worlds (ROS-free loop)',
+        description='Cover every world JSON in a directory with the planner in the ROS-free '
+        'kinematic loop; print covered %% of CVS, path, lower bound |CVS|/(2 delta) and ratio '
+        'per world, and the mean.')
+    ratio.add_argument('--worlds', required=True, help='directory of world JSON files')
+    ratio.add_argument('--baseline', action='store_true',
+                       help='also run the robot-size baseline and print extended/baseline')
+    ratio.add_argument('--max-sim-time', type=float, default=3000.0, help='per world (s)')
+    ratio.set_defaults(func=_ratio)
+
+
+def _ratio(args):
+    from coverage_pkg.kinematic import ratio_report
+    paths = sorted(Path(args.worlds).glob('*.json'))
+    if not paths:
+        raise UserError(f'--worlds {args.worlds}: no .json world files there')
+    ratio_report(paths, baseline=args.baseline, max_time=args.max_sim_time)
+    return 0
 
 
 def _worlds(args):
