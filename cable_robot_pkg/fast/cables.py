@@ -61,6 +61,7 @@ class CableSystem:
             a = np.asarray(c.anchors, float).reshape(-1, 3)
             self.anchors[i, :len(a)] = a
             self.anchor_mask[i, :len(a)] = True
+        self._mask3 = self.anchor_mask[..., None]
 
     # ----------------------------------------------------------------- geometry
     def attach_world(self, position, rotation):
@@ -122,10 +123,17 @@ class CableSystem:
         """Total cable force and torque (about the trolley origin, world axes) on the trolley.
 
         Returns ``(force (3,), torque (3,), tensions (n,), lengths (n,), slack (n,))``.
-        One geometry pass (this runs every physics step).
+        This runs every physics step, so it is :meth:`geometry`, :meth:`length_rates` and
+        :meth:`tensions` fused into one pass with the attachment offsets computed once and the
+        padding masks precomputed; the arithmetic is the same operation for operation, so the
+        results are bit-identical to calling those methods.
         """
-        r = np.asarray(self.attach) @ np.asarray(rotation).T
-        lengths, dirs = self.geometry(position, rotation)
+        r = self.attach @ np.asarray(rotation).T
+        spans = self.anchors - (np.asarray(position) + r)[:, None, :]           # (n, k, 3)
+        span_len = np.sqrt(np.add.reduce(spans * spans, axis=2))
+        span_len = np.where(self.anchor_mask, span_len, 1.0)
+        dirs = np.where(self._mask3, spans / span_len[..., None], 0.0).sum(axis=1)
+        lengths = np.where(self.anchor_mask, span_len, 0.0).sum(axis=1)
         v = np.asarray(linear_velocity) + _cross(angular_velocity, r)
         rates = -np.einsum('ij,ij->i', v, dirs)
         t, slack = self.tensions(lengths, rates, unstretched, unstretched_rates)
@@ -183,12 +191,16 @@ class CableSystem:
 
 
 def _cross(a, b):
-    """Cross product of (..., 3) arrays without np.cross's call overhead."""
+    """Cross product of (..., 3) arrays without np.cross's call overhead (same arithmetic)."""
     a = np.asarray(a, float)
     b = np.asarray(b, float)
-    return np.stack([a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
-                     a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
-                     a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    out[..., 0] = a1 * b2 - a2 * b1
+    out[..., 1] = a2 * b0 - a0 * b2
+    out[..., 2] = a0 * b1 - a1 * b0
+    return out
 
 
 def gravity_wrench(mass, com_world_offset, gravity=9.81):

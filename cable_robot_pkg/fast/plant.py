@@ -174,6 +174,11 @@ class FeedSupportPlant:
                             orient['torque_max'])
         self.leg_gains = (gs['servo_position_gain'], gs['servo_velocity_gain'],
                           gs['drive_force_max'])
+        self._cid = bullet._client
+        self._leg_kp = [float(self.leg_gains[0])] * 6
+        self._leg_kv = [float(self.leg_gains[1])] * 6
+        self._leg_fmax = [float(self.leg_gains[2])] * 6
+        self._hinge_sent = None
         self.last_tensions = np.zeros(self.cables.n)
         self.last_lengths = lengths
         self.slack = np.zeros(self.cables.n, bool)
@@ -211,35 +216,48 @@ class FeedSupportPlant:
         self.hinge_cmd = np.array([alpha, beta], float)
 
     def apply_commands(self, since):
-        """Servo targets (first-order hold of position + velocity commands)."""
-        b = self.b
-        kp, kv, fmax = self.leg_gains
+        """Servo targets (first-order hold of position + velocity commands).
+
+        The six leg servos are set in one ``setJointMotorControlArray`` call; the hinge servos
+        only when their command changed (PyBullet keeps a motor's set-point until it is set
+        again, so re-sending an unchanged one every step did nothing but cost time).
+        """
+        cid = self._cid
         target = np.clip(self.leg_cmd + self.leg_rate_cmd * since, self.geom.leg_min,
                          self.geom.leg_max)
-        for i in range(6):
-            b.setJointMotorControl2(self.body, self.ROD[i], b.POSITION_CONTROL,
-                                    targetPosition=float(target[i] - self.nominal_lengths[i]),
-                                    targetVelocity=float(self.leg_rate_cmd[i]),
-                                    positionGain=kp, velocityGain=kv, force=fmax)
-        kp, kv, tmax = self.hinge_gains
-        for j, link in enumerate((self.RING, self.UPPER)):
-            b.setJointMotorControl2(self.body, link, b.POSITION_CONTROL,
-                                    targetPosition=float(self.hinge_cmd[j]), positionGain=kp,
-                                    velocityGain=kv, force=tmax)
+        pybullet.setJointMotorControlArray(
+            self.body, self.ROD, pybullet.POSITION_CONTROL,
+            targetPositions=(target - self.nominal_lengths).tolist(),
+            targetVelocities=self.leg_rate_cmd.tolist(), positionGains=self._leg_kp,
+            velocityGains=self._leg_kv, forces=self._leg_fmax, physicsClientId=cid)
+        hinge = (float(self.hinge_cmd[0]), float(self.hinge_cmd[1]))
+        if hinge != self._hinge_sent:
+            kp, kv, tmax = self.hinge_gains
+            for j, link in enumerate((self.RING, self.UPPER)):
+                pybullet.setJointMotorControl2(self.body, link, pybullet.POSITION_CONTROL,
+                                               targetPosition=hinge[j], positionGain=kp,
+                                               velocityGain=kv, force=tmax,
+                                               physicsClientId=cid)
+            self._hinge_sent = hinge
 
     # ------------------------------------------------------------------ stepping
     def step(self):
-        """Advance one physics step: winches, cable and wind wrenches, servos, PyBullet."""
-        b = self.b
+        """Advance one physics step: winches, cable and wind wrenches, servos, PyBullet.
+
+        This runs 1000 times per simulated second, so it calls the PyBullet module directly
+        (with the client id) instead of through ``BulletClient`` attribute look-ups, reads the
+        trolley state once, and evaluates cables and wind in one pass each.
+        """
+        cid = self._cid
         dt = self.dt
         # Winches: unstretched length follows the command at most at the speed limit.
         goal = self.winch_cmd + self.winch_rate_cmd * (self.t - self.winch_cmd_time)
         step = np.clip(goal - self.unstretched, -self.winch_speed * dt, self.winch_speed * dt)
         self.unstretched = self.unstretched + step
         rates = step / dt
-        pos, q = b.getBasePositionAndOrientation(self.body)
-        lin, ang = b.getBaseVelocity(self.body)
-        R = _matrix(q)
+        pos, q = pybullet.getBasePositionAndOrientation(self.body, physicsClientId=cid)
+        lin, ang = pybullet.getBaseVelocity(self.body, physicsClientId=cid)
+        R = np.array(pybullet.getMatrixFromQuaternion(q)).reshape(3, 3)
         f, tq, tens, lengths, slack = self.cables.wrench(np.array(pos), R, np.array(lin),
                                                          np.array(ang), self.unstretched, rates)
         self.last_tensions, self.last_lengths, self.slack = tens, lengths, slack
@@ -249,10 +267,12 @@ class FeedSupportPlant:
             self.wind_force, self.wind_torque = wf, wt
             f = f + wf
             tq = tq + wt
-        b.applyExternalForce(self.body, -1, list(f), list(pos), b.WORLD_FRAME)
-        b.applyExternalTorque(self.body, -1, list(tq), b.WORLD_FRAME)
+        pybullet.applyExternalForce(self.body, -1, f.tolist(), pos, pybullet.WORLD_FRAME,
+                                    physicsClientId=cid)
+        pybullet.applyExternalTorque(self.body, -1, tq.tolist(), pybullet.WORLD_FRAME,
+                                     physicsClientId=cid)
         self.apply_commands(self.t - self.leg_cmd_time)
-        b.stepSimulation()
+        pybullet.stepSimulation(physicsClientId=cid)
         self.t += dt
 
     # ------------------------------------------------------------------ state

@@ -130,19 +130,30 @@ class WindModel:
         """Wind velocity (3,) in the map frame at time ``t``."""
         if self.U <= 0.0:
             return np.zeros(3)
-        u, v, w = self._turbulence(t)[:3]
+        return self._velocity(t, self._turbulence(t))
+
+    def _velocity(self, t, turbulence):
+        u, v, w = turbulence[:3]
         along = self.U + u + self._gust(t)
         c, s = math.cos(self.direction), math.sin(self.direction)
         return np.array([along * c - v * s, along * s + v * c, w])
 
     def wrench(self, t, rotation=None):
-        """Wind force (3,) and torque (3,) about the trolley origin, map axes."""
+        """Wind force (3,) and torque (3,) about the trolley origin, map axes.
+
+        Runs every physics step: the turbulence is interpolated once for velocity and torque
+        shapes, and the 3-vector norm and cross product are written out (same arithmetic as
+        ``np.linalg.norm`` and ``np.cross``, without their per-call overhead).
+        """
         if self.U <= 0.0:
             return np.zeros(3), np.zeros(3)
-        vel = self.velocity(t)
-        force = 0.5 * RHO_AIR * self.cd * self.area * np.linalg.norm(vel) * vel
-        R = np.eye(3) if rotation is None else np.asarray(rotation)
-        shapes = self._turbulence(t)[3:]
-        torque = np.cross(R @ self.r_cp, force) \
-            + np.linalg.norm(force) * self.torque_scale * self.I * shapes
+        turbulence = self._turbulence(t)
+        vel = self._velocity(t, turbulence)
+        force = 0.5 * RHO_AIR * self.cd * self.area * math.sqrt(vel.dot(vel)) * vel
+        r = self.r_cp if rotation is None else np.asarray(rotation) @ self.r_cp
+        f0, f1, f2 = force.tolist()
+        r0, r1, r2 = r.tolist()
+        arm = np.array([r1 * f2 - r2 * f1, r2 * f0 - r0 * f2, r0 * f1 - r1 * f0])
+        torque = arm + math.sqrt(force.dot(force)) * self.torque_scale * self.I \
+            * turbulence[3:]
         return force, torque
