@@ -337,6 +337,7 @@ class DiagramRoadmapPlanner:
     # -- planning ------------------------------------------------------------------------------
     def plan(self, start, goal, progress=None):
         t0 = time.perf_counter()
+        c0 = time.process_time()
         tick = progress or (lambda s: None)
         m = self.model
         start = np.asarray(start, dtype=float)
@@ -346,6 +347,8 @@ class DiagramRoadmapPlanner:
         stats = {}
 
         def result(status, reason='', **kw):
+            # CPU time too: on the shared machine wall time depends on the load.
+            stats['cpu_time_s'] = time.process_time() - c0
             return SpatialPlanResult(status, reason, planning_time=time.perf_counter() - t0,
                                      stats=stats, **kw)
 
