@@ -315,6 +315,10 @@ def test_cli_plan_writes_result_and_figures(tmp_path, capsys):
     assert code == 0
     doc = json.loads((out / 'result.json').read_text())
     assert doc['status'] == 'ok' and doc['min_rho'] > 0 and doc['planning_time_s'] > 0
+    assert 0.5 < doc['on_diagram_fraction'] <= 1.0
+    profile = doc['clearance_profile']
+    assert len(profile['arc_length']) == len(profile['rho']) > 10
+    assert min(profile['rho']) == pytest.approx(doc['min_rho'], abs=1e-6)
     assert independent_check(np.array(doc['path']),
                              obstacles=[[[30, 10], [40, 10], [40, 20], [30, 20]]]) is None
     for name in ('figure2.png', 'figure3.png'):
@@ -337,7 +341,9 @@ def test_fields_match_pointwise_rho():
     f = slice_fields(model, np.array([0.3, 2.0]), xs, ys)
     X, Y = np.meshgrid(xs, ys)
     q = np.stack([X, Y, np.full_like(X, 2.0)], axis=-1)
-    np.testing.assert_allclose(f.rho[1], model.rho(q))
+    # The slices use the exact affine form of each determinant (A + B x + C y): equal up to
+    # rounding, far below the free tolerance.
+    np.testing.assert_allclose(f.rho[1], model.rho(q), rtol=1e-9, atol=1e-3 * model.free_tol)
 
 
 def test_paper_query_in_the_exact_fig3_domain(tmp_path):

@@ -37,7 +37,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 __all__ = ['DiagramSlice', 'SliceFields', 'affine_coefficients', 'diagram_mask',
-           'diagram_slices', 'grid_axes', 'link_slices', 'slice_fields', 'tie_segments']
+           'diagram_slices', 'grid_axes', 'leaf_evaluator', 'link_slices', 'slice_fields',
+           'tie_segments']
 
 # In-slice neighbour offsets (dy, dx) covering the 8-neighbourhood once per unordered pair.
 _HALF8 = ((0, 1), (1, 0), (1, 1), (1, -1))
@@ -74,11 +75,45 @@ def _configs(phis, xs, ys):
 
 
 def slice_fields(model, phis, xs, ys, program='total'):
-    """Evaluate rho, the active leaf and the singularity cell on the grid (vectorised)."""
-    q = _configs(np.asarray(phis, dtype=float), xs, ys)
-    rho, active, cell = model.fields(q, program)
-    return SliceFields(np.asarray(phis, dtype=float), xs, ys, rho, active, cell,
-                       model.free_tol)
+    """Evaluate rho, the active leaf and the singularity cell on the grid (vectorised).
+
+    Each determinant is affine in (x, y) within a slice (:func:`affine_coefficients`), so
+    the grid values are ``A + B x + C y`` by broadcasting: no point coordinates per vertex.
+    """
+    phis = np.atleast_1d(np.asarray(phis, dtype=float))
+    prog = model.programs[program]
+    if any(k not in prog.keys for k in model.singular_keys):
+        q = _configs(phis, xs, ys)
+        rho, active, cell = model.fields(q, program)
+        return SliceFields(phis, xs, ys, rho, active, cell, model.free_tol)
+    A, B, C = affine_coefficients(model, phis, program)
+    rows = [prog.keys.index(k) for k in model.singular_keys]
+    shape = (len(phis), len(ys), len(xs))
+    rho = np.empty(shape)
+    active = np.empty(shape, dtype=np.int32)
+    cell = np.zeros(shape, dtype=np.int64)
+    step = max(1, (1 << 18) // (len(xs) * len(ys)))
+    for k0 in range(0, len(phis), step):
+        sl = slice(k0, k0 + step)
+        dets = (A[sl].T[:, :, None, None] + B[sl].T[:, :, None, None] * xs[None, None, None, :]
+                + C[sl].T[:, :, None, None] * ys[None, None, :, None])
+        rho[sl], active[sl] = prog.evaluate(dets)
+        for i, r in enumerate(rows):
+            cell[sl] += (np.sign(dets[r]).astype(np.int64) + 1) * 3 ** i
+    return SliceFields(phis, xs, ys, rho, active, cell, model.free_tol)
+
+
+def leaf_evaluator(model, phi, program='total'):
+    """``f(xy (n, 2)) -> (rho, active)`` in the slice ``phi``, from the affine forms."""
+    prog = model.programs[program]
+    A, B, C = affine_coefficients(model, [phi], program)
+
+    def evaluate(xy):
+        xy = np.atleast_2d(xy)
+        dets = A[0][:, None] + B[0][:, None] * xy[None, :, 0] + C[0][:, None] * xy[None, :, 1]
+        return prog.evaluate(dets)
+
+    return evaluate, (A[0], B[0], C[0])
 
 
 def _shifted_pairs(shape, dy, dx):
@@ -197,6 +232,7 @@ class DiagramSlice:
     rho: np.ndarray
     edges: np.ndarray
     _tree: object = None
+    _pair_tree: object = None
 
     @property
     def tree(self):
@@ -204,6 +240,12 @@ class DiagramSlice:
         if self._tree is None:
             self._tree = cKDTree(self.xyz[:, :2] if len(self.xyz) else np.zeros((0, 2)))
         return self._tree
+
+    def pair_tree(self, scale):
+        """k-d tree over (x, y, scale * pair): nearest queries stay within one leaf pair."""
+        if self._pair_tree is None or self._pair_tree[0] != scale:
+            self._pair_tree = (scale, cKDTree(np.c_[self.xyz[:, :2], scale * self.pair]))
+        return self._pair_tree[1]
 
 
 def diagram_slices(model, fields, program='total'):
@@ -316,8 +358,8 @@ def link_slices(lower, upper, radius):
         return np.zeros((0, 2), dtype=np.int64)
     big = 1e3 * (radius + 1.0)
     for a, b, flip in ((lower, upper, False), (upper, lower, True)):
-        tb = cKDTree(np.c_[b.xyz[:, :2], big * b.pair])
-        _, j = tb.query(np.c_[a.xyz[:, :2], big * a.pair], k=1, distance_upper_bound=radius)
+        _, j = b.pair_tree(big).query(np.c_[a.xyz[:, :2], big * a.pair], k=1,
+                                      distance_upper_bound=radius)
         ok = j < len(b.xyz)
         pairs = [np.stack([np.flatnonzero(ok), j[ok]], axis=1)]
         kk = min(2, len(b.xyz))

@@ -29,19 +29,19 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import dijkstra
+from scipy.sparse.csgraph import breadth_first_order, dijkstra, minimum_spanning_tree
 
 from paramotion.errors import UserError
 from paramotion.voronoi.diagram import (
-    affine_coefficients,
     diagram_slices,
     grid_axes,
+    leaf_evaluator,
     link_slices,
     slice_fields,
 )
 
 __all__ = ['KIND_NAMES', 'MAX_GRID_VERTICES', 'PlanResult', 'VoronoiPlanner', 'check_path',
-           'densify', 'diagram_segments', 'validate_configuration']
+           'densify', 'diagram_segments', 'near_diagram_fraction', 'validate_configuration']
 
 #: Largest sampled grid accepted (about 1.5 GB of roadmap arrays).
 MAX_GRID_VERTICES = 12_000_000
@@ -147,6 +147,44 @@ KIND_NAMES = {RETRACTION: 'retraction', SLICE_PIECE: 'diagram piece (in slice)',
               OFF_ATTACH: 'off-diagram attach'}
 
 
+def _bottleneck(n_nodes, u, v, clear, s_id, g_id):
+    """Largest clearance c such that edges of clearance >= c connect start and goal (the
+    maximin path lies on a maximum spanning tree); 0 if they are not connected."""
+    if s_id == g_id:
+        return float('inf')
+    if len(clear) == 0:
+        return 0.0
+    top = float(clear.max())
+    weight = (top - clear) + 1.0   # positive: csgraph drops zero weights
+    tree = minimum_spanning_tree(csr_matrix((weight, (u, v)), shape=(n_nodes, n_nodes)))
+    _, pred = breadth_first_order(tree, s_id, directed=False, return_predecessors=True)
+    if pred[g_id] < 0:
+        return 0.0
+    sym = (tree + tree.T).tocsr()
+    worst = float('inf')
+    node = g_id
+    while node != s_id:
+        p = pred[node]
+        worst = min(worst, top + 1.0 - sym[p, node])
+        node = p
+    return worst
+
+
+def near_diagram_fraction(model, path, delta, phi_scale):
+    """Length share of a dense ``path`` (phi weighted by ``phi_scale``) whose samples lie
+    within ``delta`` in x or y of a change of rho's active leaf - of the diagram itself."""
+    path = np.asarray(path, dtype=float)
+    if len(path) < 2:
+        return 1.0
+    acts = np.array([model.evaluate(path + np.array([dx, dy, 0.0]))[1]
+                     for dx, dy in ((0, 0), (delta, 0), (-delta, 0), (0, delta), (0, -delta))])
+    near = np.any(acts != acts[:1], axis=0)
+    d = np.diff(path, axis=0)
+    length = np.sqrt(d[:, 0] ** 2 + d[:, 1] ** 2 + (phi_scale * d[:, 2]) ** 2)
+    total = float(length.sum())
+    return float(length[near[:-1] & near[1:]].sum() / total) if total > 0 else 1.0
+
+
 def diagram_segments(result):
     """The diagram edges a found path used, ``(m, 2, 3)`` pairs of configurations."""
     if not result.found:
@@ -168,7 +206,8 @@ class VoronoiPlanner:
     """
 
     def __init__(self, model, h=1.0, dphi_deg=2.5, check_step=0.05, check_dphi=0.01,
-                 phi_scale=None, link_radius=None, max_iterations=500):
+                 phi_scale=None, link_radius=None, clearance_fraction=0.5,
+                 max_iterations=500):
         if not (h > 0 and dphi_deg > 0 and check_step > 0 and check_dphi > 0):
             raise UserError('planner resolutions must be positive')
         self.model = model
@@ -176,6 +215,7 @@ class VoronoiPlanner:
         self.check_step = float(check_step)
         self.check_dphi = float(check_dphi)
         self.max_iterations = int(max_iterations)
+        self.clearance_fraction = float(clearance_fraction)
         lengths = [np.linalg.norm(p) for p in model.moving.values()]
         self.phi_scale = float(phi_scale if phi_scale is not None else max(lengths + [1.0]))
         self.link_radius = float(link_radius if link_radius is not None else 2.0 * self.h)
@@ -196,6 +236,7 @@ class VoronoiPlanner:
                             'grid or fewer slices')
         self._fields = None
         self._slices = {}
+        self._links = {}
 
     @property
     def base_fields(self):
@@ -217,6 +258,9 @@ class VoronoiPlanner:
             for k, sl in zip(chunk, diagram_slices(self.model, f)):
                 self._slices[k] = sl
         return [self._slices[k] for k in ks]
+
+    def _cached(self):
+        return {id(s) for s in self._slices.values()}
 
     def _slice_at(self, phi):
         """Diagram slice at orientation ``phi``: a cached uniform one if it coincides."""
@@ -264,7 +308,8 @@ class VoronoiPlanner:
         prog = model.programs['total']
         key_of = [k for k, _ in prog.leaves]
         sign_of = [s for _, s in prog.leaves]
-        A, B, C = affine_coefficients(model, [q[2]])
+        evaluate, (A, B, C) = leaf_evaluator(model, q[2])
+        A, B, C = A[None], B[None], C[None]
         dom = model.domain
         lo = np.array([dom.x[0], dom.y[0]])
         hi = np.array([dom.x[1], dom.y[1]])
@@ -273,8 +318,7 @@ class VoronoiPlanner:
         chain = [np.array(q, dtype=float)]
 
         def active(pts):
-            pts = np.atleast_2d(pts)
-            return model.evaluate(np.c_[pts, np.full(len(pts), q[2])])[1]
+            return evaluate(pts)[1]
 
         for _ in range(64):
             leaf = int(active(p)[0])
@@ -316,6 +360,7 @@ class VoronoiPlanner:
         graph over ``slices`` (ordered along phi) plus the two retraction ends."""
         offs = np.cumsum([0] + [len(s.xyz) for s in slices])
         xyz = np.vstack([s.xyz for s in slices] + [np.zeros((0, 3))])
+        node_rho = np.concatenate([s.rho for s in slices] + [np.zeros(0)])
         us, vs, kinds = [], [], []
         for i, s in enumerate(slices):
             us.append(s.edges[:, 0] + offs[i])
@@ -324,8 +369,14 @@ class VoronoiPlanner:
         pairs = list(zip(range(len(slices) - 1), range(1, len(slices))))
         if periodic_ring and len(slices) > 2:
             pairs.append((len(slices) - 1, 0))
+        cached = self._cached()
         for a, b in pairs:
-            lk = link_slices(slices[a], slices[b], self.link_radius)
+            cache = (id(slices[a]), id(slices[b]))
+            lk = self._links.get(cache)
+            if lk is None:
+                lk = link_slices(slices[a], slices[b], self.link_radius)
+                if cache[0] in cached and cache[1] in cached:
+                    self._links[cache] = lk
             us.append(lk[:, 0] + offs[a])
             vs.append(lk[:, 1] + offs[b])
             kinds.append(np.full(len(lk), SLICE_LINK))
@@ -333,6 +384,7 @@ class VoronoiPlanner:
         for slice_index, p, on in ends:
             nid = len(xyz)
             xyz = np.vstack([xyz, p[None, :]])
+            node_rho = np.r_[node_rho, self.model.rho(p)]
             end_ids.append(nid)
             s = slices[slice_index]
             near = []
@@ -353,13 +405,29 @@ class VoronoiPlanner:
         d = xyz[v] - xyz[u]
         d[:, 2] = _wrap(d[:, 2]) * self.phi_scale
         cost = np.maximum(np.sqrt(np.sum(d * d, axis=1)), 1e-9)
-        return xyz, u, v, kind, cost, end_ids
+        clear = np.minimum(node_rho[u], node_rho[v])
+        return xyz, u, v, kind, cost, clear, end_ids
 
-    def _search(self, xyz, u, v, kind, cost, s_id, g_id, stats):
-        """Lazy Dijkstra: shortest path on the diagram graph whose edges all pass dense
-        checking. Returns (node sequence, edge kinds) or None."""
+    def _search(self, xyz, u, v, kind, cost, clear, s_id, g_id, stats):
+        """Lazy Dijkstra on the diagram graph: the shortest path among edges whose clearance
+        is at least ``clearance_fraction`` of the best achievable bottleneck (maximin, from a
+        maximum spanning tree), then, if lazy checking removed too much, among all edges
+        (the threshold never costs completeness). Every edge used passes dense checking.
+        Returns (node sequence, edge kinds) or None."""
         n = len(xyz)
-        alive = np.ones(len(u), dtype=bool)
+        best = _bottleneck(n, u, v, clear, s_id, g_id)
+        stats['bottleneck_rho'] = best
+        for tau in ([self.clearance_fraction * best, 0.0] if best > 0 else [0.0]):
+            found = self._lazy(xyz, u, v, kind, cost, clear >= tau, tau, s_id, g_id, stats)
+            if found is not None:
+                return found
+        return None
+
+    def _lazy(self, xyz, u, v, kind, cost, usable, floor, s_id, g_id, stats):
+        """Dijkstra among ``usable`` edges; each edge of a candidate path is checked densely
+        and dropped if it is not free or if rho dips below ``floor`` along it."""
+        n = len(xyz)
+        alive = usable.copy()
         verified = np.zeros(len(u), dtype=bool)
         edge_of = csr_matrix((np.r_[np.arange(len(u)), np.arange(len(u))] + 1,
                               (np.r_[u, v], np.r_[v, u])), shape=(n, n))
@@ -382,7 +450,7 @@ class VoronoiPlanner:
                 a = xyz[u[todo]]
                 b = xyz[v[todo]].copy()
                 b[:, 2] = a[:, 2] + _wrap(b[:, 2] - a[:, 2])
-                bad = self._bad_segments(a, b)
+                bad = self._bad_segments(a, b, floor)
                 verified[todo] = True
                 if len(bad):
                     alive[todo[bad]] = False
@@ -449,11 +517,17 @@ class VoronoiPlanner:
             ends = [(index[id(s_slice)], chains[0][0][-1], chains[0][1]),
                     (index[id(g_slice)], chains[1][0][-1], chains[1][1])]
             tick('search')
-            xyz, u, v, kind, cost, (s_id, g_id) = self._graph(slices, ring, ends)
+            xyz, u, v, kind, cost, clear, (s_id, g_id) = self._graph(slices, ring, ends)
             stats.update(stage=stage + 1, slices=len(slices), diagram_nodes=len(xyz) - 2,
                          diagram_edges=int(np.count_nonzero(kind != OFF_ATTACH)))
-            found = self._search(xyz, u, v, kind, cost, s_id, g_id, stats)
-            if found is not None:
+            found = self._search(xyz, u, v, kind, cost, clear, s_id, g_id, stats)
+            # The window between the start's and goal's orientations is enough when its
+            # bottleneck is not what limits the clearance: at least clearance_fraction of
+            # the clearance at the two retraction ends. Otherwise (e.g. the platform must
+            # turn away to pass) search all slices.
+            cap = min(float(model.rho(chains[0][0][-1])), float(model.rho(chains[1][0][-1])))
+            if found is not None and (full or stats['bottleneck_rho']
+                                      >= self.clearance_fraction * cap):
                 break
         if found is None:
             return result('no_path', 'start and goal retract onto parts of the simplified '
@@ -477,6 +551,11 @@ class VoronoiPlanner:
         on = float(seg_len[np.isin(seg_kind, _ON_DIAGRAM)].sum())
         stats['length_by_kind'] = {KIND_NAMES[k]: float(seg_len[seg_kind == k].sum())
                                    for k in KIND_NAMES if np.any(seg_kind == k)}
+        # The same share measured on rho itself: within 0.05 units, and within one grid
+        # spacing (the resolution at which the diagram is sampled), of an active-leaf change.
+        stats['on_diagram_measured'] = {
+            f'within {d:g}': near_diagram_fraction(model, samples, d, self.phi_scale)
+            for d in (0.05, self.h)}
         ds = np.diff(samples, axis=0)
         arc = np.r_[0.0, np.cumsum(np.sqrt(ds[:, 0] ** 2 + ds[:, 1] ** 2
                                            + (self.phi_scale * ds[:, 2]) ** 2))]
@@ -485,8 +564,9 @@ class VoronoiPlanner:
                       on_diagram_fraction=on / total if total > 0 else 1.0,
                       segment_kinds=seg_kind, clearance=np.c_[arc, rho])
 
-    def _bad_segments(self, a, b):
-        """Indices of the straight segments a[i] -> b[i] that fail dense checking."""
+    def _bad_segments(self, a, b, floor=0.0):
+        """Indices of the straight segments a[i] -> b[i] that fail dense checking (rho at or
+        below ``floor`` or the free tolerance, or a pure-condition sign change)."""
         d = b - a
         nseg = np.maximum(1, np.ceil(np.maximum(np.hypot(d[:, 0], d[:, 1]) / self.check_step,
                                                 np.abs(d[:, 2]) / self.check_dphi))
@@ -494,7 +574,7 @@ class VoronoiPlanner:
         seg = np.repeat(np.arange(len(d)), nseg + 1)
         offs = np.arange(seg.size) - np.repeat(np.cumsum(nseg + 1) - (nseg + 1), nseg + 1)
         q = a[seg] + (offs / nseg[seg])[:, None] * d[seg]
-        bad = self.model.rho(q) <= self.model.free_tol
+        bad = self.model.rho(q) <= max(self.model.free_tol, floor)
         signs = self.model.singular_signs(q)
         if signs.size:
             first = np.repeat(np.cumsum(nseg + 1) - (nseg + 1), nseg + 1)
