@@ -59,9 +59,10 @@ def test_climber_graph_across_processes_climbs(tmp_path):
 
 def test_fast_graph_across_processes_holds_the_feed_within_spec(tmp_path):
     """Feed pose (ground truth) against the feed target after settling, both as received over
-    DDS. The five nodes keep up with the 200 Hz isolation loop on 2 shared cores at 0.1x real
-    time (at 0.2x the isolation controller falls behind: leg commands are skipped and the feed
-    error grows to about 11 mm; at 0.5x about 55 mm)."""
+    DDS. The five nodes must keep up with the 200 Hz isolation loop: on 2 cores at 0.1x real
+    time they do when the machine is otherwise idle (1.5 mm RMS), not at a load of 11 (6.2-6.4
+    mm); at 0.2x the isolation controller falls behind (leg commands skipped, 11 mm), at 0.5x
+    56 mm. 0.05x leaves room for a loaded machine."""
     from geometry_msgs.msg import PoseStamped
 
     from paramotion.qos import SENSOR_QOS, STATE_QOS
@@ -72,12 +73,12 @@ def test_fast_graph_across_processes_holds_the_feed_within_spec(tmp_path):
         return (m.header.stamp.sec + m.header.stamp.nanosec * 1e-9,
                 np.array([p.x, p.y, p.z]), np.array([q.x, q.y, q.z, q.w]))
 
-    with launched(['fast', 'real_time_factor:=0.1'], tmp_path) as (launch, w):
+    with launched(['fast', 'real_time_factor:=0.05'], tmp_path) as (launch, w):
         w.subscribe(PoseStamped, '/fast/ground_truth/feed',
                     lambda m: feed.append(sample(m)), SENSOR_QOS)
         w.subscribe(PoseStamped, '/fast/feed_target',
                     lambda m: target.append(sample(m)), STATE_QOS)
-        settle, window = 2.0, 1.5
+        settle, window = 1.5, 0.8
         assert w.spin_until(lambda: feed and feed[-1][0] >= settle + window, 58, launch), (
             feed[-1][0] if feed else 'no feed pose', launch.output()[-3000:])
         _check_clean_stop(launch)
@@ -93,7 +94,7 @@ def test_fast_graph_across_processes_holds_the_feed_within_spec(tmp_path):
         ang_err.append(math.degrees(2 * math.acos(min(1.0, abs(float(q @ q_goal))))))
     rms_mm = 1000 * math.sqrt(np.mean(np.square(pos_err)))
     rms_deg = math.sqrt(np.mean(np.square(ang_err)))
-    assert len(pos_err) > 100
+    assert len(pos_err) > 120
     assert rms_mm < 4.0 and rms_deg < 0.1, \
         f'feed RMS {rms_mm:.2f} mm, {rms_deg:.3f} deg across processes (spec 4 mm, 0.1 deg)'
 
