@@ -195,3 +195,15 @@ def test_node_refuses_an_undeclared_parameter_in_one_process():
         graph.add(SmokeControllerNode, name='ctl', tagret=1.0)
     assert str(info.value) == ("ctl: unknown parameter 'tagret' (declared: target, gain, "
                                'max_speed, timeout)')
+
+
+def test_interpreter_imports_no_rclpy():
+    """launch_xml is an algorithm-style module: reading launch files needs no ROS."""
+    import subprocess
+    import sys
+    code = ('import sys\nfrom paramotion import launch_xml\nlaunch_xml.load("coverage")\n'
+            "print(sorted(m for m in sys.modules if m.split('.')[0] == 'rclpy'))")
+    proc = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                          timeout=60, cwd=lx._REPO)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert proc.stdout.strip() == '[]'
