@@ -343,12 +343,14 @@ class VoronoiPlanner:
                 continue
             t_lo = ts[other[0] - 1] if other[0] > 0 else 0.0
             t_hi = ts[other[0]]
-            for _ in range(60):
-                mid = 0.5 * (t_lo + t_hi)
-                if active(p + mid * d)[0] == leaf:
-                    t_lo = mid
+            for _ in range(4):      # bracket shrinks 256-fold per vectorised pass
+                ts = np.linspace(t_lo, t_hi, 257)[1:-1]
+                change = np.flatnonzero(active(p + ts[:, None] * d) != leaf)
+                if len(change):
+                    t_hi = ts[change[0]]
+                    t_lo = ts[change[0] - 1] if change[0] > 0 else t_lo
                 else:
-                    t_hi = mid
+                    t_lo = ts[-1]
             p = p + t_lo * d
             chain.append(np.r_[p, q[2]])
             return np.array(chain), True
@@ -429,13 +431,14 @@ class VoronoiPlanner:
         n = len(xyz)
         alive = usable.copy()
         verified = np.zeros(len(u), dtype=bool)
-        edge_of = csr_matrix((np.r_[np.arange(len(u)), np.arange(len(u))] + 1,
-                              (np.r_[u, v], np.r_[v, u])), shape=(n, n))
+        # One symmetric matrix for all iterations: a dropped edge gets an infinite weight.
+        eid = np.r_[np.arange(len(u)), np.arange(len(u))]
+        graph = csr_matrix((eid + 1.0, (np.r_[u, v], np.r_[v, u])), shape=(n, n))
+        graph.sort_indices()
+        pos_eid = graph.data.astype(np.int64) - 1
+        graph.data = np.where(alive[pos_eid], cost[pos_eid], np.inf)
         for _ in range(self.max_iterations):
             stats['search_iterations'] = stats.get('search_iterations', 0) + 1
-            e = np.flatnonzero(alive)
-            graph = csr_matrix((np.r_[cost[e], cost[e]], (np.r_[u[e], v[e]], np.r_[v[e], u[e]])),
-                               shape=(n, n))
             _, pred = dijkstra(graph, directed=True, indices=s_id, return_predecessors=True)
             if s_id != g_id and pred[g_id] < 0:
                 return None
@@ -443,8 +446,11 @@ class VoronoiPlanner:
             while seq[-1] != s_id:
                 seq.append(int(pred[seq[-1]]))
             seq = seq[::-1]
-            edges = np.array([int(edge_of[a, b]) - 1 for a, b in zip(seq[:-1], seq[1:])],
-                             dtype=np.int64)
+            edges = []
+            for a, b in zip(seq[:-1], seq[1:]):
+                lo_, hi_ = graph.indptr[a], graph.indptr[a + 1]
+                edges.append(pos_eid[lo_ + np.searchsorted(graph.indices[lo_:hi_], b)])
+            edges = np.array(edges, dtype=np.int64)
             todo = edges[~verified[edges]]
             if len(todo):
                 a = xyz[u[todo]]
@@ -454,6 +460,7 @@ class VoronoiPlanner:
                 verified[todo] = True
                 if len(bad):
                     alive[todo[bad]] = False
+                    graph.data[np.isin(pos_eid, todo[bad])] = np.inf
                     stats['rejected_edges'] = stats.get('rejected_edges', 0) + len(bad)
                     continue
             return seq, kind[edges]
