@@ -348,8 +348,18 @@ def test_singularity_cell_certificate_and_bad_poses():
 
 def test_cli_plan321_writes_result_and_figure(tmp_path):
     out = tmp_path / 'out'
-    assert cli_main(['voronoi', 'plan321', '--out', str(out), '--samples', '200',
-                     '--leg-min', '0.3', '--leg-max', '1.6']) == 0
+    window = tmp_path / 'window.json'
+    window.write_text(json.dumps({
+        'platform': {'7': [0, 0, 0], '8': [-0.2, 0.12, 0], '9': [-0.2, -0.12, 0]},
+        'boxes': [{'center': [0.0, -0.45, 0.95], 'size': [0.06, 0.6, 0.8]},
+                  {'center': [0.0, 0.55, 0.95], 'size': [0.06, 0.6, 0.8]}],
+        'bounds': {'position_min': [-0.25, -0.3, 0.6], 'position_max': [0.4, 0.4, 0.7],
+                   'angle_max_deg': 20},
+        'leg_length': {'min': 0.2, 'max': 2.0}}))
+    pose = ['--start', '-0.2', '0.3', '0.65', '0', '0', '0',
+            '--goal', '0.3', '0.3', '0.65', '0', '0', '0']
+    assert cli_main(['voronoi', 'plan321', '--out', str(out), '--scene', str(window),
+                     '--samples', '200', '--leg-min', '0.3', '--leg-max', '1.6'] + pose) == 0
     doc = json.loads((out / 'result.json').read_text())
     assert doc['status'] == 'ok' and doc['straight_line_free'] is False
     assert doc['leg_length_limits_m'] == [0.3, 1.6]

@@ -239,7 +239,7 @@ class DiagramRoadmapPlanner:
 
     def __init__(self, model, n_samples=400, k=8, seed=0, check_step=0.005, check_dangle=0.01,
                  tie_tol=1e-3, diagram_tol=2e-3, probe_step=0.01, max_gap=0.03,
-                 batch_edges=40):
+                 batch_edges=40, shortcut=True):
         if n_samples < 10 or k < 2:
             raise UserError(f'samples {n_samples}, neighbours {k}: need at least 10 samples '
                             'and 2 neighbours')
@@ -259,6 +259,7 @@ class DiagramRoadmapPlanner:
         self.probe_step = float(probe_step)
         self.max_gap = float(max_gap)
         self.batch_edges = int(batch_edges)
+        self.shortcut = bool(shortcut)
 
     # -- samples -------------------------------------------------------------------------------
     def samples(self):
@@ -454,11 +455,14 @@ class DiagramRoadmapPlanner:
                           f'{int((~alive).sum())} of {len(a)} edges refused by tracing along '
                           f'the diagram every {self.probe_step:g} or by the dense check); '
                           'more samples may connect them')
-        parts = [ends[0]]
+        pieces = []
         for u, v in zip(seq[:-1], seq[1:]):
             poly = polys[edge_of[(min(u, v), max(u, v))]]
-            parts.append((poly if u < v else poly[::-1])[1:])
-        parts.append(ends[1][::-1][1:])
+            pieces.append(poly if u < v else poly[::-1])
+        if self.shortcut:
+            pieces = self._shortcut(pts[seq], pieces)
+        stats['path_diagram_pieces'] = len(pieces)
+        parts = [ends[0]] + [piece[1:] for piece in pieces] + [ends[1][::-1][1:]]
         way = np.vstack(parts)
         tick('verify')
         ok, min_rho, bad = check_path6(m, way, self.check_step, self.check_dangle)
@@ -468,6 +472,34 @@ class DiagramRoadmapPlanner:
         n_chain = (len(ends[0]), len(ends[1]))
         stats.update(self.path_on_diagram(path, way, n_chain))
         return result('ok', path=path, waypoints=way, min_rho=min_rho)
+
+    def _shortcut(self, nodes, pieces, reach=6):
+        """Shorten a roadmap path along the diagram: from each path node, trace edges to the
+        next ``reach`` nodes beyond its neighbour (one batch) and jump to the farthest one whose
+        traced edge passes the dense check and is shorter than the pieces it replaces."""
+        m = self.model
+
+        def length(poly):
+            return float(np.sum(np.linalg.norm(np.diff(poly, axis=0) * m.scale, axis=1)))
+
+        out, i = [], 0
+        while i < len(pieces):
+            cands = list(range(min(len(nodes) - 1, i + 1 + reach), i + 1, -1))
+            jump = None
+            if cands:
+                traced = self.trace(np.repeat(nodes[i:i + 1], len(cands), axis=0),
+                                    nodes[cands])
+                ok = [(j, t) for j, t in zip(cands, traced) if t is not None
+                      and length(t) < sum(length(pc) for pc in pieces[i:j])]
+                free = self._free_polylines([t for _, t in ok])
+                jump = next(((j, t) for (j, t), f in zip(ok, free) if f), None)
+            if jump is None:
+                out.append(pieces[i])
+                i += 1
+            else:
+                out.append(jump[1])
+                i = jump[0]
+        return out
 
     def path_on_diagram(self, path, way, n_chain):
         """Length share of the path within ``diagram_tol`` of a tie, overall and between the
