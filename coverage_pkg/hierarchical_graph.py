@@ -3,8 +3,9 @@
 Two kinds of nodes: *vast* nodes (connected components of the vast region
 ``VR = {x in FCS_r : D(x) > delta}``, each holding a Reeb graph of its Morse cells) and
 *narrow* nodes (components of ``NR = FCS_r \\ VR``, each holding a piece of the GVD with its
-meet points). A vast and a narrow node are joined by one edge per *cusp point* (a GVD point
-with ``D = delta``) between them; two nodes of the same kind are never adjacent.
+meet points). A vast and a narrow node whose cells touch are joined by an edge carrying the
+*cusp points* (GVD points with ``D = delta``) between them, those sensed by the ring and those
+predicted from the map; two nodes of the same kind are never adjacent.
 
 The planner rebuilds the components from its growing sensor map; this class keeps node
 *identity* across rebuilds (a node is anchored at the point where it was first sensed, e.g. the

@@ -4,7 +4,9 @@ Algorithm 1 of Acar, Choset and Lee constructs the hierarchical decomposition *i
 from sensor data. Our planner keeps the accumulated range data as an occupancy evidence grid in
 the ``odom`` frame (the world is unknown, so the grid grows as the robot senses new space) and
 a *trace* layer marking where the robot centre has been, which is how the planner knows which
-lapping lines, boundary pieces and GVD edges it has already followed.
+lapping lines, boundary pieces and GVD edges it has already followed, and a *viewed* layer,
+the detector's footprint (range delta, line of sight through known free cells), which tells
+which boundary and GVD pieces still have something to show.
 """
 import math
 
@@ -114,8 +116,9 @@ class EvidenceGrid:
     def mark_viewed(self, x, y, radius):
         """Mark the cells the detector of range ``radius`` sees from (x, y): along rays through
         known free cells, up to and including the first cell that is not known free. Only
-        cells whose centre lies within ``radius - res / 2`` count, so a cell marked viewed is
-        within range as a whole (the grid must not claim more than the detector saw)."""
+        cells whose centre lies within ``radius - res`` count, so a cell marked viewed is
+        within range as a whole even where the grid misplaces a wall by a cell (the grid must
+        not claim more than the detector saw)."""
         self.ensure(x - radius - 1, y - radius - 1, x + radius + 1, y + radius + 1)
         reach = radius - self.res
         n = max(32, int(math.ceil(2 * math.pi * reach / (0.5 * self.res))))

@@ -114,7 +114,7 @@ def run_coverage(world_path, delta=2.0, radius=0.25, detector='extended', bag_di
             'decisions': [list(d) for d in (p.decisions if p is not None else [])],
             # Every event (sensed: critical, cusp, meet; cell_closed, node_created, ...):
             # [sim time, kind, x, y (map), detail].
-            'events': [[e[0], e[1], e[2] + sx, e[3] + sy, e[4]]
+            'events': [[e[0], e[1], round(e[2] + sx, 3), round(e[3] + sy, 3), e[4]]
                        for e in (p.events if p is not None else [])],
             'frames': 'path and graph in map; the planner works in odom (origin at start)',
             'path': np.round(path, 3).tolist(),

@@ -284,3 +284,19 @@ def test_hierarchical_graph_keeps_identity_merges_and_finds_uncovered_nodes():
     assert {k for k in g.edges} == {(min(a, b), n)}
     d = g.to_dict()
     assert {x['type'] for x in d['nodes']} == {'vast', 'narrow'} and d['edges']
+
+
+def test_world_generator_is_seeded_valid_and_varied(tmp_path):
+    """coverage_pkg.worldgen: same seed, same world; every world passes the world loader with
+    the robot's clearance at the start; all four layouts occur; bad count is one line."""
+    from coverage_pkg.worldgen import KINDS, generate_world, write_worlds
+    assert generate_world(3) == generate_world(3)
+    assert generate_world(3) != generate_world(4)
+    paths = write_worlds(tmp_path, 12, seed=100)
+    assert len(paths) == 12
+    names = [p.stem for p in paths]
+    assert {n.split('_')[1] for n in names} == set(KINDS)
+    for p in paths:
+        world_from_dict(json.loads(p.read_text()), radius=0.25)
+    with pytest.raises(UserError, match='--count 0'):
+        write_worlds(tmp_path, 0)
