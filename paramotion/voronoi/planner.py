@@ -246,8 +246,15 @@ class VoronoiPlanner:
         return self._fields
 
     def prepare(self):
-        """Compute and cache the diagram of every uniform slice (e.g. at node start-up)."""
-        self._uniform(range(len(self.phis)))
+        """Compute and cache the diagram of every uniform slice and the links between
+        consecutive ones (e.g. at node start-up)."""
+        slices = self._uniform(range(len(self.phis)))
+        pairs = list(zip(slices, slices[1:]))
+        if self.model.domain.periodic:
+            pairs.append((slices[-1], slices[0]))
+        for a, b in pairs:
+            if (id(a), id(b)) not in self._links:
+                self._links[(id(a), id(b))] = link_slices(a, b, self.link_radius)
 
     def _uniform(self, ks):
         ks = list(ks)
