@@ -5,15 +5,19 @@ again and nothing tells the user why. :class:`ClockWatchdog` checks the node's c
 *wall-clock* (steady) timer every ``period`` seconds. When simulated time has advanced once and
 then not advanced for ``timeout`` wall seconds it warns **once** (log and a WARN status on
 ``/diagnostics``, diagnostic_msgs/DiagnosticArray as ROS diagnostics tools expect); when time
-advances again it says so once (log and an OK status). Checking is a cheap wall timer at
-``period`` (default 0.5 s), so a node with a stopped clock sleeps rather than spins.
+advances again it says so once (log and an OK status). Checking runs in a daemon thread that
+sleeps ``period`` (default 0.5 s) between passes, so a node with a stopped clock sleeps rather
+than spins. (A wall timer in the node's executor instead was seen to upset the climber graph
+across processes: the planner's clock lagged by seconds of sim time on a loaded machine.)
 
 :func:`paramotion.node.run_node` attaches one to every node that runs on sim time in its own
 process. One-process Graph runs do not get one: there the runner drives the clock itself and a
 long callback is not a stopped simulator.
 """
+import threading
+import time
+
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from rclpy.clock import Clock, ClockType
 
 from paramotion.qos import STATE_QOS
 
@@ -29,16 +33,28 @@ class ClockWatchdog:
         self.on_change = on_change
         self.stopped = False
         self.warnings = 0
-        self._wall = Clock(clock_type=ClockType.STEADY_TIME)
+        self.period = float(period)
         self._last_ns = None
         self._last_change_wall = None
         self._pub = node.create_publisher(DiagnosticArray, '/diagnostics', STATE_QOS)
-        self._timer = node.create_timer(period, self.check, clock=self._wall)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True,
+                                        name=f'clock_watchdog_{node.get_name()}')
+        self._thread.start()
+
+    def _run(self):
+        while not self._stop.wait(self.period):
+            try:
+                self.check()
+            except Exception:   # node or context being destroyed: stop watching
+                if self._stop.is_set() or not self.node.context.ok():
+                    return
+                raise
 
     def check(self):
-        """One watchdog pass (called by the wall timer; callable directly in tests)."""
+        """One watchdog pass (called by the thread; callable directly in tests)."""
         now_ns = self.node.get_clock().now().nanoseconds
-        wall = self._wall.now().nanoseconds * 1e-9
+        wall = time.monotonic()
         if now_ns != self._last_ns:
             self._last_ns = now_ns
             self._last_change_wall = wall
@@ -70,9 +86,10 @@ class ClockWatchdog:
         if self.on_change is not None:
             self.on_change(self.stopped, message)
 
-    def destroy(self):
-        self.node.destroy_timer(self._timer)
-        self.node.destroy_publisher(self._pub)
+    def stop(self):
+        """Stop watching (before the node is destroyed)."""
+        self._stop.set()
+        self._thread.join(2.0 * self.period + 1.0)
 
 
 def uses_sim_time(node):

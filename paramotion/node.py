@@ -223,12 +223,12 @@ def overrides_from_dict(values):
 def run_node(node_cls, args=None):
     """Standard Jazzy ``main()`` body: init, spin, clean shutdown; one-line parameter errors."""
     rclpy.init(args=args)
-    node = None
+    node = watchdog = None
     try:
         node = node_cls()
         # A node on sim time in its own process warns once if its simulator stops.
         from paramotion.clock_watchdog import attach
-        attach(node)
+        watchdog = attach(node)
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
@@ -241,6 +241,8 @@ def run_node(node_cls, args=None):
         print(f'error: {exc}', file=sys.stderr)
         sys.exit(2)
     finally:
+        if watchdog is not None:
+            watchdog.stop()
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
