@@ -15,6 +15,23 @@ Publishes: ``/climber/leg_command`` (trajectory_msgs/JointTrajectory, one point)
 ``/climber/planned_path`` (nav_msgs/Path, latched), ``/climber/markers``
 (visualization_msgs/MarkerArray: estimated rings and measured structure sections, latched),
 ``/climber/status`` (diagnostic_msgs/DiagnosticStatus, latched: state, cycle, refusal reason).
+
+A managed (lifecycle) node, as Nav2's planners and controllers are: it must not command the
+legs or the clamps before it knows the encoders, both clamps and both ultrasonic rings.
+
+* *unconfigured* -> **configure**: reads the robot file, builds the gait, subscribes to the
+  inputs and creates the (lifecycle) command publishers, still silent.
+* *inactive* -> **activate**: refused (the transition fails, the node stays inactive and says
+  which inputs are missing, in the log and in ``/climber/status``) until every input has
+  arrived at least once; then planning starts on the next ``1/rate`` tick.
+* **deactivate** stops planning and commanding (the gait keeps its state; activate resumes);
+  **cleanup** drops the gait and the subscriptions.
+
+With ``autostart: true`` (default) the node does this itself: configures when created and
+activates as soon as its inputs are there, so ``ros2 run``, ``paramotion launch`` and the
+one-process Graph runner need no lifecycle manager. With ``autostart: false`` a manager
+(``ros2 lifecycle set``, Nav2's lifecycle_manager) drives the transitions through the standard
+``~/change_state`` services.
 """
 import math
 
@@ -23,6 +40,7 @@ from builtin_interfaces.msg import Duration
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point, PoseStamped
 from nav_msgs.msg import Path
+from rclpy.lifecycle import LifecycleNodeMixin, LifecyclePublisher, TransitionCallbackReturn
 from sensor_msgs.msg import JointState, Range
 from std_msgs.msg import Bool
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
@@ -38,6 +56,7 @@ from climber_pkg.gait import (
 )
 from climber_pkg.robot import load_robot_config
 from paramotion import gough_stewart as gs
+from paramotion.errors import UserError
 from paramotion.node import Param, ParamotionNode, run_node
 from paramotion.qos import LATCHED_QOS, SENSOR_QOS, STATE_QOS
 
@@ -54,8 +73,12 @@ def pose_msg(position, rotation):
     return msg
 
 
-class ClimberPlannerNode(ParamotionNode):
-    """Sensor-based predictive climbing of an unknown structure."""
+INPUTS = ('/climber/joint_states', '/climber/ring1/clamp_closed', '/climber/ring2/clamp_closed',
+          '/climber/ring1/ultrasonic', '/climber/ring2/ultrasonic')
+
+
+class ClimberPlannerNode(LifecycleNodeMixin, ParamotionNode):
+    """Sensor-based predictive climbing of an unknown structure (a managed node)."""
 
     PARAMS = (
         Param('robot_config', '', 'Robot geometry YAML; empty = climber_pkg/config/climber.yaml.',
@@ -87,10 +110,94 @@ class ClimberPlannerNode(ParamotionNode):
               min=0.1, max=60.0, read_only=True),
         Param('rate', 20.0, 'Planning rate (Hz, sim time).', min=1.0, max=1000.0,
               read_only=True),
+        Param('autostart', True, 'Configure when created and activate as soon as every input '
+              'has arrived; false: wait for a lifecycle manager.', read_only=True),
     )
 
     def __init__(self, node_name='climber_planner', **kwargs):
-        super().__init__(node_name, **kwargs)
+        ParamotionNode.__init__(self, node_name, **kwargs)
+        LifecycleNodeMixin.__init__(self, enable_communication_interface=True)
+        self.gait = None
+        self.seen = set()               # inputs received at least once
+        self.configure_error = None
+        self._timer = None
+        self._entities = []
+        self.status_pub = self.create_publisher(DiagnosticStatus, '/climber/status',
+                                                LATCHED_QOS)
+        self.last_status = None
+        self._waiting_said = None
+        if self.params.autostart:
+            self.trigger_configure()
+            if self.configure_error is not None:
+                raise self.configure_error   # bad robot file: one line, exit 2 (run_node)
+
+    @property
+    def lifecycle_state(self):
+        """Current lifecycle state label: unconfigured, inactive, active, finalized..."""
+        return self._state_machine.current_state[1]
+
+    def missing_inputs(self):
+        return [t for t in INPUTS if t not in self.seen]
+
+    def _seen(self, topic):
+        self.seen.add(topic)
+
+    # ------------------------------------------------------------------ lifecycle
+    def on_configure(self, state):
+        try:
+            self._configure()
+        except UserError as exc:
+            self.configure_error = exc
+            self.get_logger().error(f'configure failed: {exc}')
+            return TransitionCallbackReturn.FAILURE
+        self.configure_error = None
+        self._say_waiting()
+        return super().on_configure(state)
+
+    def on_activate(self, state):
+        missing = self.missing_inputs()
+        if missing:
+            self._say_waiting()
+            return TransitionCallbackReturn.FAILURE
+        self.get_logger().info('every input is there: planning')
+        return super().on_activate(state)
+
+    def on_deactivate(self, state):
+        self.get_logger().info('deactivated: planning stopped')
+        return super().on_deactivate(state)
+
+    def on_cleanup(self, state):
+        for entity in self._entities:
+            if isinstance(entity, LifecyclePublisher):
+                self.destroy_lifecycle_publisher(entity)
+            else:
+                self.destroy_subscription(entity)
+        self._entities = []
+        if self._timer is not None:
+            self.destroy_timer(self._timer)
+            self._timer = None
+        self.gait = None
+        self.seen.clear()
+        self._waiting_said = None
+        return super().on_cleanup(state)
+
+    def on_shutdown(self, state):
+        return TransitionCallbackReturn.SUCCESS
+
+    def _say_waiting(self):
+        missing = self.missing_inputs()
+        if not missing or missing == self._waiting_said:
+            return
+        self._waiting_said = missing
+        text = 'inactive: waiting for ' + ', '.join(missing)
+        self.get_logger().info(text)
+        st = DiagnosticStatus(level=DiagnosticStatus.WARN, name='climber_planner',
+                              message=text, hardware_id='climber')
+        st.values = [KeyValue(key='state', value='inactive')]
+        self.last_status = st
+        self.status_pub.publish(st)
+
+    def _configure(self):
         p = self.params
         self.robot = load_robot_config(p.robot_config or None)
         rb = self.robot
@@ -103,27 +210,25 @@ class ClimberPlannerNode(ParamotionNode):
         self.gait = ClimbingGait(rb.geometry, rb.sensor_mount_radius, rb.sensor_angles,
                                  rb.sensor_min_range, rb.sensor_max_range,
                                  rb.ring_inner_radius, params)
-        self.create_subscription(JointState, '/climber/joint_states', self._on_joints,
-                                 SENSOR_QOS)
+        sub, pub = self.create_subscription, self.create_lifecycle_publisher
+        subs = [sub(JointState, INPUTS[0], self._on_joints, SENSOR_QOS)]
         for ring in (0, 1):
-            self.create_subscription(Bool, f'/climber/ring{ring + 1}/clamp_closed',
-                                     lambda m, r=ring: self.gait.update_clamp(self._now(), r,
-                                                                              m.data),
-                                     STATE_QOS)
-            self.create_subscription(Range, f'/climber/ring{ring + 1}/ultrasonic',
-                                     lambda m, r=ring: self._on_range(r, m), SENSOR_QOS)
-        self.leg_pub = self.create_publisher(JointTrajectory, '/climber/leg_command', STATE_QOS)
-        self.clamp_pubs = [self.create_publisher(Bool, f'/climber/ring{r}/clamp_command',
-                                                 STATE_QOS) for r in (1, 2)]
-        self.pose_pub = self.create_publisher(PoseStamped, '/climber/planned_pose', STATE_QOS)
-        self.path_pub = self.create_publisher(Path, '/climber/planned_path', LATCHED_QOS)
-        self.marker_pub = self.create_publisher(MarkerArray, '/climber/markers', LATCHED_QOS)
-        self.status_pub = self.create_publisher(DiagnosticStatus, '/climber/status',
-                                                LATCHED_QOS)
+            subs.append(sub(Bool, INPUTS[1 + ring], lambda m, r=ring: self._on_clamp(r, m),
+                            STATE_QOS))
+            subs.append(sub(Range, INPUTS[3 + ring], lambda m, r=ring: self._on_range(r, m),
+                            SENSOR_QOS))
+        # Commands and plans only go out while active (lifecycle publishers).
+        self.leg_pub = pub(JointTrajectory, '/climber/leg_command', STATE_QOS)
+        self.clamp_pubs = [pub(Bool, f'/climber/ring{r}/clamp_command', STATE_QOS)
+                           for r in (1, 2)]
+        self.pose_pub = pub(PoseStamped, '/climber/planned_pose', STATE_QOS)
+        self.path_pub = pub(Path, '/climber/planned_path', LATCHED_QOS)
+        self.marker_pub = pub(MarkerArray, '/climber/markers', LATCHED_QOS)
+        self._entities = subs + [self.leg_pub, *self.clamp_pubs, self.pose_pub, self.path_pub,
+                                 self.marker_pub]
         self.path = Path()
         self.path.header.frame_id = 'odom'
-        self.last_status = None
-        self.create_timer(1.0 / p.rate, self._tick)
+        self._timer = self.create_timer(1.0 / p.rate, self._tick)
 
     def check_params(self, values):
         if values['delta_min'] > values['delta']:
@@ -142,7 +247,12 @@ class ClimberPlannerNode(ParamotionNode):
         except ValueError:
             self.get_logger().error(f'joint_states must name {LEG_NAMES}')
             return
+        self._seen(INPUTS[0])
         self.gait.update_encoders(self._now(), [msg.position[k] for k in idx])
+
+    def _on_clamp(self, ring, msg):
+        self._seen(INPUTS[1 + ring])
+        self.gait.update_clamp(self._now(), ring, msg.data)
 
     def _on_range(self, ring, msg):
         frame = msg.header.frame_id
@@ -150,9 +260,19 @@ class ClimberPlannerNode(ParamotionNode):
         if not frame.startswith(prefix) or frame[len(prefix):] not in ('0', '1', '2'):
             self.get_logger().error(f'unexpected ultrasonic frame {frame!r}')
             return
+        self._seen(INPUTS[3 + ring])
         self.gait.update_range(self._now(), ring, int(frame[len(prefix):]), msg.range)
 
     def _tick(self):
+        """One planning step; while inactive with autostart, activate once the inputs are
+        there (in this same tick, so planning keeps the timer's phase)."""
+        state = self.lifecycle_state
+        if state == 'inactive' and self.params.autostart and not self.missing_inputs():
+            self.trigger_activate()
+            state = self.lifecycle_state
+        if state != 'active':
+            self._say_waiting()
+            return
         now = self._now()
         for action in self.gait.tick(now):
             self._execute(action, now)
