@@ -2,11 +2,14 @@
 
 Topic names live here too, so the nodes, the scenario and the tests agree on them.
 """
+import copy
+import os
+
 import numpy as np
 from geometry_msgs.msg import PoseStamped
 from sensor_msgs.msg import JointState
 
-from cable_robot_pkg.fast.configuration import load_config
+from cable_robot_pkg.fast.configuration import DEFAULT_CONFIG, load_config
 from cable_robot_pkg.fast.rotations import matrix_from_quat, quat_from_matrix
 from paramotion.errors import UserError
 
@@ -34,9 +37,30 @@ LEG_NAMES = [f'leg{i + 1}' for i in range(6)]
 HINGE_NAMES = ['hinge_x', 'hinge_y']
 
 
+_CONFIG_CACHE = {}
+
+
+def _file_key(path):
+    st = os.stat(path)
+    return (os.path.realpath(path), st.st_mtime_ns, st.st_size)
+
+
 def config_from_param(path):
-    """Validated config from a node's ``config`` parameter ('' = the packaged default)."""
-    return load_config(path or None)
+    """Validated config from a node's ``config`` parameter ('' = the packaged default).
+
+    Validation (every track target's reachability) takes most of a node's start-up, and a
+    one-process graph has five nodes reading the same file, each twice (parameter check and
+    construction): the validated config is cached per file contents (path, mtime, size of the
+    user file and of the packaged defaults) and each caller gets its own deep copy.
+    """
+    try:
+        key = (_file_key(path) if path else None, _file_key(DEFAULT_CONFIG))
+    except OSError:
+        return load_config(path or None)     # missing file: load_config names the problem
+    if key not in _CONFIG_CACHE:
+        _CONFIG_CACHE.clear()
+        _CONFIG_CACHE[key] = load_config(path or None)
+    return copy.deepcopy(_CONFIG_CACHE[key])
 
 
 def stamp_seconds(stamp):
@@ -95,7 +119,7 @@ def joint_vector(msg, names, field='position'):
 def check_config_param(path):
     """One-line reason if the ``config`` parameter does not load, else None."""
     try:
-        load_config(path or None)
+        config_from_param(path)
     except UserError as exc:
         return f"parameter 'config': {exc}"
     return None

@@ -406,21 +406,53 @@ def _plot_sweep(path, rows, wind):
     plt.close(fig)
 
 
+def bench_real_time_factor(duration=5.0, repeat=3, config='', wind=1.0, latency=0.02,
+                           progress=None):
+    """Real-time factor of the whole FAST graph in one process (median of ``repeat`` runs).
+
+    Each run is :func:`run_graph` for ``duration`` sim seconds with isolation on and no bag or
+    series (wall time from graph construction to the end of the run, as ``paramotion fast``
+    reports it). ``progress(i, run)`` is called after each run. Returns a dict with
+    ``real_time_factor`` (median), ``real_time_factors`` (each run), the median controller
+    update times in ms, ``duration_s``, ``repeat`` and ``cores``. Used by ``paramotion fast
+    bench`` and ``paramotion bench``.
+    """
+    if not (duration > 0 and math.isfinite(duration)):
+        raise UserError(f'duration {duration}: must be a positive number of seconds')
+    if int(repeat) < 1:
+        raise UserError(f'repeat {repeat}: must be at least 1')
+    runs = []
+    for i in range(int(repeat)):
+        run = run_graph(duration, config, wind, latency, True, record_series=False)
+        runs.append(run)
+        if progress is not None:
+            progress(i, run)
+    factors = [r['real_time_factor'] for r in runs]
+    return {
+        'real_time_factor': float(np.median(factors)),
+        'real_time_factors': [float(x) for x in factors],
+        'cable_update_ms': 1e3 * float(np.median(np.concatenate(
+            [r['cable_update_s'] for r in runs]))),
+        'isolation_update_ms': 1e3 * float(np.median(np.concatenate(
+            [r['isolation_update_s'] for r in runs]))),
+        'duration_s': float(duration), 'repeat': int(repeat), 'cores': os.cpu_count(),
+    }
+
+
 def _bench(args):
     _check_args(args)
-    runs = []
-    for i in range(args.repeat):
-        run = run_graph(args.duration, args.config, args.wind, args.latency, True,
-                        record_series=False)
-        runs.append(run)
+    if args.repeat < 1:
+        raise UserError(f'--repeat {args.repeat}: must be at least 1')
+
+    def progress(i, run):
         print(f"run {i + 1}: {run['sim_time_s']:.1f} s sim in {run['wall_time_s']:.1f} s wall, "
               f"real-time factor {run['real_time_factor']:.2f}", flush=True)
-    rtf = float(np.median([r['real_time_factor'] for r in runs]))
-    cab = 1e3 * float(np.median(np.concatenate([r['cable_update_s'] for r in runs])))
-    iso = 1e3 * float(np.median(np.concatenate([r['isolation_update_s'] for r in runs])))
-    print(f'median real-time factor of the whole graph: {rtf:.2f}')
-    print(f'median cable controller update: {cab:.3f} ms; median isolation controller '
-          f'update: {iso:.3f} ms')
+
+    res = bench_real_time_factor(args.duration, args.repeat, args.config, args.wind,
+                                 args.latency, progress=progress)
+    print(f"median real-time factor of the whole graph: {res['real_time_factor']:.2f}")
+    print(f"median cable controller update: {res['cable_update_ms']:.3f} ms; median isolation "
+          f"controller update: {res['isolation_update_ms']:.3f} ms")
     return 0
 
 
@@ -497,5 +529,6 @@ def register(subparsers):
     parser.set_defaults(func=run_or_fail)
 
 
-__all__ = ['BAG_TOPICS', 'bag_series', 'evaluate', 'evaluate_run', 'register', 'run_graph']
+__all__ = ['BAG_TOPICS', 'bag_series', 'bench_real_time_factor', 'detach_qos_event_handlers',
+           'evaluate', 'evaluate_run', 'register', 'run_graph']
 

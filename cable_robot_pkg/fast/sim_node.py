@@ -119,10 +119,11 @@ class FastSimNode(SimulationNode):
     def publish_state(self):
         pl = self.plant
         stamp = self.stamp()
-        self.pubs['truth_trolley'].publish(pose_msg(stamp, 'map', *pl.trolley_pose()))
+        trolley = pl.trolley_pose()
+        self.pubs['truth_trolley'].publish(pose_msg(stamp, 'map', *trolley))
         self.pubs['truth_upper'].publish(pose_msg(stamp, 'map', *pl.upper_pose()))
         self.pubs['truth_feed'].publish(pose_msg(stamp, 'map', *pl.feed_pose()))
-        dL = self.cfg.cables.length_rates(*pl.trolley_pose(), *pl.trolley_velocity())
+        dL = self.cfg.cables.length_rates(*trolley, *pl.trolley_velocity())
         self.pubs['cables_state'].publish(joint_state_msg(
             stamp, self.cable_names, pl.last_lengths, dL, pl.last_tensions))
         self.pubs['winches_state'].publish(joint_state_msg(
