@@ -18,8 +18,9 @@ import math
 import numpy as np
 from numba import njit
 
-#: Poses whose Jacobian singular values are computed together (lanes of one Jacobi run).
-_LANES = 8
+#: Poses whose Jacobian singular values are computed together (lanes of one Jacobi run): with
+#: 64 the compiler vectorises the lane loops (0.6 us per matrix here, against 2 us with 8).
+_LANES = 64
 
 
 @njit(cache=True, nogil=True, error_model='numpy')
@@ -55,7 +56,7 @@ def _block_condition(jb, norms, gamma, cs, sn, tt, out, count):
                     g = gamma[ln]
                     alpha = norms[p, ln]
                     beta = norms[q, ln]
-                    act = abs(g) > 1e-15 * math.sqrt(alpha * beta)
+                    act = g * g > 1e-30 * (alpha * beta)   # |cos| > 1e-15, no sqrt
                     gs = g if act else 1.0
                     zeta = (beta - alpha) / (2.0 * gs)
                     t = math.copysign(1.0, zeta) / (abs(zeta) + math.sqrt(1.0 + zeta * zeta))
