@@ -269,3 +269,32 @@ def test_fast_tracker_killed_controllers_hold_then_recover_on_restart(tmp_path):
         assert any(not np.array_equal(p, legs[n_legs][1]) for _, p, _ in legs[n_legs:])
         assert any(not np.array_equal(p, cables[n_cables][1]) for _, p, _ in cables[n_cables:])
         print(f'tracker killed at sim {t_kill:.2f} s, restarted at {t_restart:.2f} s')
+
+
+def test_clock_watchdog_warns_once_when_clock_stops_and_recovers():
+    """The watchdog alone, in one process: a lock-step simulator stands still (the runner
+    stops advancing it) for longer than the timeout, then advances again."""
+    from paramotion.clock_watchdog import ClockWatchdog, uses_sim_time
+    from paramotion.graph import Graph
+    from paramotion.smoke.controller_node import SmokeControllerNode
+    from paramotion.smoke.sim_node import SmokeSimNode
+    changes = []
+    with Graph() as graph:
+        sim = graph.add(SmokeSimNode)
+        ctl = graph.add(SmokeControllerNode)
+        assert uses_sim_time(ctl) and not uses_sim_time(sim)
+        dog = ClockWatchdog(ctl, timeout=0.3, period=0.05,
+                            on_change=lambda stopped, text: changes.append((stopped, text)))
+        try:
+            graph.spin_wall(0.5)
+            assert dog.warnings == 0            # time has not started: no warning
+            graph.run_lockstep(sim, max_sim_time=0.5)
+            assert graph.spin_wall(10.0, until=lambda: dog.stopped)
+            graph.spin_wall(0.5)
+            assert dog.warnings == 1 and len(changes) == 1, changes
+            assert '/clock stopped at sim time 0.500 s' in changes[0][1]
+            graph.run_lockstep(sim, max_sim_time=0.6)
+            assert graph.spin_wall(10.0, until=lambda: not dog.stopped)
+            assert changes[-1][0] is False and 'advances again' in changes[-1][1]
+        finally:
+            dog.stop()
