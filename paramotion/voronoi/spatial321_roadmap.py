@@ -390,6 +390,13 @@ class DiagramRoadmapPlanner:
         use = np.r_[0, 1, 2 + np.flatnonzero(on_tie[2:])]
         pts = nodes[use]
         stats['roadmap_nodes'] = len(pts)
+        if len(q):
+            # Distance to the tie set of the samples before and of the nodes after retraction.
+            before = tie_measure(m, raw[2:])['dist']
+            after = tie_measure(m, pts[2:])['dist'] if len(pts) > 2 else np.zeros(1)
+            stats.update(sample_tie_distance_median=float(np.median(before)),
+                         node_tie_distance_median=float(np.median(after)),
+                         node_tie_distance_max=float(np.max(after)))
         tick('search')
         t_e = time.perf_counter()
         tree = cKDTree(pts * m.scale)
