@@ -316,8 +316,13 @@ def test_window_detour_found_and_walled_off_answered_no_path():
     assert np.all((res.path[gate, 1] > -0.15) & (res.path[gate, 1] < 0.25))
     # Same scene without the window, same sampling: no path.
     wall = _window_model(False)
-    res = DiagramRoadmapPlanner(wall, n_samples=200, seed=0).plan(WALL_START, WALL_GOAL)
+    wall_planner = DiagramRoadmapPlanner(wall, n_samples=200, seed=0)
+    res = wall_planner.plan(WALL_START, WALL_GOAL)
     assert res.status == 'no_path' and 'different connected components' in res.reason
+    # Not for want of samples: the same sampling has free poses on both sides of the wall.
+    q = wall_planner.samples()
+    q = q[wall.rho(q) > wall.free_tol]
+    assert (q[:, 0] < -0.03).sum() > 20 and (q[:, 0] > 0.03).sum() > 20
     # Independent check: x of P7 is continuous from -0.2 to 0.3, so any path has a pose with
     # P7 at x in (-0.03, 0.03); every such pose in the bounds collides (direct geometry).
     q = wall.sample(np.random.default_rng(11), 20000)
