@@ -1,14 +1,14 @@
-"""Compiled (numba) kernel of the batched Gough-Stewart forward kinematics.
+"""Compiled (numba) kernels of the Gough-Stewart forward kinematics (batched and single).
 
 One loop over the poses, each solved by the same Newton-Raphson as the numpy path of
 :func:`paramotion.gough_stewart.forward_kinematics_batch` (eq. (4), 7 unknowns ``[r, e]``): the
-same residual test, the same phi_q rows (``_constraint_jacobian``), the same 7 x 7 step (here by
-Gaussian elimination with partial pivoting, the algorithm of LAPACK's ``dgesv``), the same
-"singular when |det phi_q| < 1e-300 or not finite" rule, and at the end the 2-norm condition of
-the homogenised inverse Jacobian (here by one-sided Jacobi, which gives the singular values to
-full relative accuracy, instead of LAPACK's SVD). Why: the numpy path spends its time in
-per-matrix LAPACK calls on (N, 7, 7) and (N, 6, 6) stacks (about 1 us and 4.6 us per pose);
-in one compiled loop the whole solve takes about a microsecond.
+same residual test (written ``|L|^2 - C^2 < 2 C tol`` as in the single solver), the same phi_q
+rows (``_constraint_jacobian``), the same 7 x 7 step (here by Gaussian elimination with partial
+pivoting, the algorithm of LAPACK's ``dgesv``), the same "singular when |det phi_q| < 1e-300 or
+not finite" rule, and at the end the 2-norm condition of the homogenised inverse Jacobian (here
+by one-sided Jacobi, which gives the singular values to full relative accuracy, instead of
+LAPACK's SVD). Why: the numpy path spends its time in per-matrix LAPACK calls on (N, 7, 7) and
+(N, 6, 6) stacks (about 1 us and 4.6 us per pose); here a solve takes about 2 us.
 
 Only imported when numba is installed; :mod:`paramotion.gough_stewart` falls back to numpy
 otherwise (and when ``PARAMOTION_BACKEND=numpy``). Compiled on first use, cached on disk.
@@ -146,7 +146,7 @@ def _rotation(e0, e1, e2, e3, out):
 
 @njit(cache=True, nogil=True, error_model='numpy')
 def _newton(ck, r0, r1, r2, e0, e1, e2, e3, run, plat, base, tol, max_iter, a, legs, sq, jac,
-            phi):
+            phi, c2, lim):
     """Newton-Raphson on eq. (4) for one pose (lengths ``ck``) from the guess ``r``, ``e``.
 
     Returns ``(r0, r1, r2, e0, e1, e2, e3, iterations, converged, singular)``; ``run`` False
@@ -155,6 +155,9 @@ def _newton(ck, r0, r1, r2, e0, e1, e2, e3, run, plat, base, tol, max_iter, a, l
     it = 0
     ok = False
     sing = False
+    for i in range(6):
+        c2[i] = ck[i] * ck[i]
+        lim[i] = 2 * ck[i] * tol       # |L|^2 - C^2 < 2 C tol  <=>  |L| - C < tol (to 1e-24)
     while run:
         _rotation(e0, e1, e2, e3, a)
         res = 0.0
@@ -167,11 +170,10 @@ def _newton(ck, r0, r1, r2, e0, e1, e2, e3, run, plat, base, tol, max_iter, a, l
             legs[i, 1] = ly
             legs[i, 2] = lz
             sq[i] = lx * lx + ly * ly + lz * lz
-            res_i = abs(sq[i] - ck[i] * ck[i]) / (2 * ck[i])
-            if not res_i <= res:         # NaN-propagating max
-                res = res_i
+            if not abs(sq[i] - c2[i]) < lim[i]:     # NaN counts as not converged
+                res = 1.0
         ee = e0 * e0 + e1 * e1 + e2 * e2 + e3 * e3
-        if res < tol and abs(ee - 1.0) < tol:
+        if res == 0.0 and abs(ee - 1.0) < tol:
             ok = True
             break
         if it >= max_iter:
@@ -193,7 +195,7 @@ def _newton(ck, r0, r1, r2, e0, e1, e2, e3, run, plat, base, tol, max_iter, a, l
             jac[i, 4] = 2 * ep * lx + 2 * le * px - 2 * e0 * (ly * pz - lz * py)
             jac[i, 5] = 2 * ep * ly + 2 * le * py - 2 * e0 * (lz * px - lx * pz)
             jac[i, 6] = 2 * ep * lz + 2 * le * pz - 2 * e0 * (lx * py - ly * px)
-            phi[i] = 0.5 * (sq[i] - ck[i] * ck[i])
+            phi[i] = 0.5 * (sq[i] - c2[i])
         jac[6, 0] = 0.0
         jac[6, 1] = 0.0
         jac[6, 2] = 0.0
@@ -227,6 +229,8 @@ def fk_batch_kernel(c, r, e, valid, plat, base, rho, tol, max_iter, max_conditio
     sq = np.empty(6)
     jac = np.empty((7, 7))
     phi = np.empty(7)
+    c2 = np.empty(6)
+    lim = np.empty(6)
     ok_k = np.zeros(n, dtype=np.bool_)
     sing_k = np.zeros(n, dtype=np.bool_)
     check = np.zeros(n, dtype=np.bool_)
@@ -235,7 +239,7 @@ def fk_batch_kernel(c, r, e, valid, plat, base, rho, tol, max_iter, max_conditio
         e0, e1, e2, e3 = e[k, 0], e[k, 1], e[k, 2], e[k, 3]
         r0, r1, r2, e0, e1, e2, e3, it, ok, sing = _newton(
             c[k], r0, r1, r2, e0, e1, e2, e3, valid[k], plat, base, tol, max_iter, a, legs, sq,
-            jac, phi)
+            jac, phi, c2, lim)
         norm = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2 + e3 * e3)
         e0, e1, e2, e3 = e0 / norm, e1 / norm, e2 / norm, e3 / norm
         _rotation(e0, e1, e2, e3, a)
@@ -360,8 +364,11 @@ def fk_single_kernel(c, r0, r1, r2, e0, e1, e2, e3, plat, base, rho, tol, max_it
     sq = np.empty(6)
     jac = np.empty((7, 7))
     phi = np.empty(7)
+    c2 = np.empty(6)
+    lim = np.empty(6)
     r0, r1, r2, e0, e1, e2, e3, it, ok, sing = _newton(
-        c, r0, r1, r2, e0, e1, e2, e3, True, plat, base, tol, max_iter, a, legs, sq, jac, phi)
+        c, r0, r1, r2, e0, e1, e2, e3, True, plat, base, tol, max_iter, a, legs, sq, jac, phi,
+        c2, lim)
     cond = math.inf
     if sing:
         return r0, r1, r2, e0, e1, e2, e3, it, ok, sing, cond
