@@ -279,11 +279,12 @@ class VoronoiPlanner:
         f = slice_fields(self.model, np.array([phi]), self.xs, self.ys)
         return None, diagram_slices(self.model, f)[0]
 
-    def _window(self, phi_s, phi_g, full):
+    def _window(self, phi_s, phi_g, margin):
         """Uniform slice indices searched, in order along phi, and the ordering key."""
         dom = self.model.domain
         n = len(self.phis)
-        margin = 2 * self.dphi
+        full = margin is None or (dom.periodic and 2 * margin + abs(float(_wrap(phi_g - phi_s)))
+                                  >= 2 * math.pi - self.dphi)
         if not dom.periodic:
             if full:
                 return list(range(n)), (lambda p: p)
@@ -514,8 +515,11 @@ class VoronoiPlanner:
         s_k, s_slice = self._slice_at(start[2])
         g_k, g_slice = self._slice_at(goal[2])
         found = None
-        for stage, full in enumerate((False, True)):
-            ks, key = self._window(start[2], goal[2], full)
+        # Widening windows: the start-goal arc +- 2 slices, +- 45 deg, then every slice.
+        margins = (2 * self.dphi, max(2 * self.dphi, math.radians(45)), None)
+        for stage, margin in enumerate(margins):
+            ks, key = self._window(start[2], goal[2], margin)
+            full = len(ks) == len(self.phis)
             entries = [(key(self.phis[k]), k, sl) for k, sl in zip(ks, self._uniform(ks))]
             for k, sl in ((s_k, s_slice), (g_k, g_slice)):
                 if k is None or k not in ks:
