@@ -1,5 +1,6 @@
 """Planar planner on the simplified Voronoi diagram: the paper's query, "no path" answers,
-bad input, completeness against a flood fill of the sampled grid, and the CLI.
+bad input and the CLI (completeness: test_voronoi_completeness.py; detours:
+test_voronoi_detours.py).
 
 Paths are checked by an independent checker (direct geometry, not the planner's rho): every
 0.01 rad / 0.05 units along straight interpolation, P3 stays on one side of the base line,
@@ -10,8 +11,6 @@ import math
 
 import numpy as np
 import pytest
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from paramotion.cli import main as cli_main
 from paramotion.errors import UserError
@@ -19,10 +18,8 @@ from paramotion.voronoi.diagram import grid_axes, slice_fields
 from paramotion.voronoi.planar import (
     PAPER_GOAL,
     PAPER_START,
-    Domain,
     load_scene,
     paper_model,
-    planar_model,
 )
 from paramotion.voronoi.planner import ATTACH, RETRACTION, SLICE_LINK, SLICE_PIECE, VoronoiPlanner
 
@@ -209,85 +206,6 @@ def test_bad_start_or_goal_names_the_failing_predicate(paper_planner, q, words):
     with pytest.raises(UserError, match='goal') as err:
         paper_planner.plan(PAPER_START, q)
     assert words in str(err.value)
-
-
-def _reference_components(fields, obstacles):
-    """Connected components of the sampled grid: free vertices joined by grid edges
-    (8-neighbours in a slice, same x, y in the next slice, periodic in phi) that pass the
-    independent dense check - the reference for resolution completeness."""
-    shape = fields.rho.shape
-    idx = np.arange(fields.rho.size).reshape(shape)
-    pos = np.stack(np.meshgrid(fields.phis, fields.ys, fields.xs, indexing='ij'), axis=-1)
-    pos = pos[..., ::-1]                                    # (x, y, phi)
-    free = fields.free
-    us, vs = [], []
-    pairs = []
-    for dy, dx in ((0, 1), (1, 0), (1, 1), (1, -1)):
-        ya, yb = slice(max(0, -dy), shape[1] - max(0, dy)), slice(max(0, dy),
-                                                                 shape[1] - max(0, -dy))
-        xa, xb = slice(max(0, -dx), shape[2] - max(0, dx)), slice(max(0, dx),
-                                                                 shape[2] - max(0, -dx))
-        pairs.append(((slice(None), ya, xa), (slice(None), yb, xb), 0.0))
-    pairs.append(((slice(0, -1),), (slice(1, None),), 0.0))
-    pairs.append(((slice(-1, None),), (slice(0, 1),), 2 * np.pi))
-    for sa, sb, wrap in pairs:
-        ok = free[sa] & free[sb]
-        u, v = idx[sa][ok], idx[sb][ok]
-        a = pos.reshape(-1, 3)[u]
-        b = pos.reshape(-1, 3)[v].copy()
-        b[:, 2] += wrap
-        good = ~bad_segments(a, b, obstacles=obstacles)
-        us.append(u[good])
-        vs.append(v[good])
-    u, v = np.concatenate(us), np.concatenate(vs)
-    graph = coo_matrix((np.ones(len(u)), (u, v)), shape=(idx.size, idx.size))
-    _, labels = connected_components(graph, directed=False)
-    return labels.reshape(shape)
-
-
-@pytest.mark.parametrize('seed', [7, 11])
-def test_planner_is_complete_on_the_sampled_grid_in_an_unseen_scene(seed):
-    """Random convex obstacles: the planner finds a path between two grid vertices exactly
-    when the sampled grid connects them through edges that pass independent dense checking."""
-    rng = np.random.default_rng(seed)
-    obstacles = []
-    for _ in range(3):
-        c = rng.uniform([-15, -30], [45, -8])
-        ang = np.sort(rng.uniform(0, 2 * np.pi, 4))
-        obstacles.append([tuple(c + rng.uniform(3, 6) * np.array([np.cos(a), np.sin(a)]))
-                          for a in ang])
-    model = planar_model(((0.0, 0.0), (15.0, 0.0)), 10.0,
-                          ((-25.0, 40.0), (-25.0, -40.0), (55.0, -40.0), (55.0, 40.0)),
-                          obstacles, Domain())
-    planner = VoronoiPlanner(model, h=3.0, dphi_deg=15.0)
-    fields = planner.base_fields
-    labels = _reference_components(fields, obstacles)
-    free_idx = np.argwhere(fields.free)
-    lab_of = labels[tuple(free_idx.T)]
-    cell_of = fields.cell[tuple(free_idx.T)]
-    outcomes = set()
-    for trial in range(18):
-        a = free_idx[rng.integers(len(free_idx))]
-        same_cell = cell_of == fields.cell[tuple(a)]
-        same_comp = lab_of == labels[tuple(a)]
-        # Mix goal choices: anywhere; same component; same singularity cell but another
-        # component (only a search over the roadmap can answer those).
-        pool = [np.ones_like(same_cell), same_comp, same_cell & ~same_comp][trial % 3]
-        if not pool.any():
-            pool = np.ones_like(same_cell)
-        b = free_idx[rng.choice(np.flatnonzero(pool))]
-        qa = (fields.xs[a[2]], fields.ys[a[1]], fields.phis[a[0]])
-        qb = (fields.xs[b[2]], fields.ys[b[1]], fields.phis[b[0]])
-        res = planner.plan(qa, qb)
-        connected = labels[tuple(a)] == labels[tuple(b)]
-        assert res.found == connected, (qa, qb, res.reason)
-        # Kinds of answer: path, no path by the singularity-cell certificate, no path after
-        # a roadmap search (a separating obstacle).
-        outcomes.add('path' if res.found else
-                     'searched' if 'slices' in res.stats else 'certificate')
-        if res.found:
-            assert independent_check(res.path, obstacles=obstacles) is None
-    assert outcomes == {'path', 'searched', 'certificate'}
 
 
 def test_scene_file_errors_are_one_line(tmp_path):

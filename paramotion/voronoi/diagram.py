@@ -8,28 +8,20 @@ leaf changes. For a fixed orientation phi of the planar platform every determina
 in (x, y), so each slice of the diagram is an arrangement of straight segments (the paper's
 "straight skeleton" remark).
 
-Sampled construction, used by the planner (:mod:`paramotion.voronoi.planner`):
+Construction used by the planner (:mod:`paramotion.voronoi.planner`):
 
-* a grid of spacing ``h`` in (x, y) in every slice ``phi_k``; at each vertex rho, the active
-  leaf and the sign vector of the pure-condition determinants (the singularity cell);
-* *diagram vertices*: free vertices (rho > 0) with a free 4-neighbour of another active leaf
-  (the diagram crosses the grid edge between them), plus slice-local maxima of rho;
-* the *retraction*: from any free vertex, steepest ascent of rho over the 8-neighbours of its
-  slice (never changing singularity cell) until a diagram vertex. rho increases along it, so
-  moving off the obstacles onto the diagram never enters a forbidden region;
-* *roadmap edges*: between the retractions of two free neighbouring vertices in the same
-  slice (8-neighbours), or in consecutive slices (same (x, y)), when they retract to
-  different diagram vertices. Two neighbouring diagram vertices are joined directly; across
-  orientation, a diagram vertex is joined to where its rotated copy retracts in the next
-  slice. Each edge keeps all its witnesses ``(u, v)`` best first, so a witness refused by
-  dense checking is replaced by the next (lazy verification).
+* :func:`affine_coefficients`: the exact affine form ``A + B x + C y`` of every determinant in
+  a slice (all moving points are P3 plus a constant), so grid fields (:func:`slice_fields`)
+  and tie points need no per-point geometry;
+* :func:`diagram_slices`: per slice, a graph whose nodes are the exact tie points
+  ``L_a = L_b`` on grid edges whose end vertices (free, same singularity cell) have different
+  active leaves, and whose edges are the straight pieces joining the tie points of one grid
+  cell (a junction node where three or more meet);
+* :func:`link_slices`: links between diagram vertices of consecutive slices (nearest of the
+  same leaf pair, two nearest of any pair, within a radius).
 
-Because every free grid edge of the sampled configuration space maps onto a roadmap edge, the
-roadmap connects two diagram vertices whenever the free vertices of the sampled grid connect
-them (resolution completeness); the planner's tests compare it with a flood fill.
-
-:func:`tie_segments` extracts the exact straight pieces of one slice (marching squares on the
-active-leaf field, tie points from the two affine leaves), for figures and markers.
+No roadmap edge comes from a free grid edge: the planner searches these pieces and links only.
+:func:`tie_segments` extracts the same straight pieces of one slice for figures and markers.
 """
 from dataclasses import dataclass
 

@@ -9,19 +9,23 @@ onto the diagram, and to join these points with a path that lies wholly on the d
 2. answers "no path" at once when start and goal lie in different singularity cells: the
    pure-condition determinants have different signs, so every path would cross a singularity
    (e.g. P3 above and below the base line);
-3. builds the sampled roadmap of :mod:`paramotion.voronoi.diagram` with the start's and goal's
-   orientations as extra slices, retracts start and goal onto the diagram (steepest ascent of
-   rho, so the retraction never approaches an obstacle), and searches the roadmap with
-   Dijkstra (cost: length, phi weighted by ``phi_scale``);
-4. verifies every roadmap edge it uses by dense checking (rho > 0 every ``check_step`` units
-   and ``check_dphi`` rad, and no sign change of a pure-condition determinant) and replaces a
-   refused edge by its next witness (lazy verification), repeating the search;
-5. returns the densely sampled path, or ``status = 'no_path'`` when the roadmap holds no
-   verified connection - a finite search, never a hang.
+3. retracts start and goal onto the diagram by rho ascent: a straight climb along the gradient
+   of the active (affine) leaf until another leaf becomes active - a point of the diagram;
+4. searches only along diagram edges (:mod:`paramotion.voronoi.diagram`): the exact straight
+   pieces within each phi slice and links between diagram vertices of consecutive slices,
+   with Dijkstra (length, phi weighted by ``phi_scale``) among edges keeping at least half the
+   best achievable bottleneck clearance, then all; slices are computed lazily in widening
+   phi windows around the start-goal arc and cached;
+5. verifies every edge it uses by dense checking (rho > 0 every ``check_step`` units and
+   ``check_dphi`` rad, no sign change of a pure-condition determinant), drops refused edges
+   and repeats (lazy verification);
+6. returns the densely sampled path (climb, diagram pieces, climb back), its
+   ``on_diagram_fraction`` and clearance profile, or ``status = 'no_path'`` when the verified
+   diagram graph does not connect the two retraction ends - a finite search, never a hang.
 
-Resolution completeness: the roadmap connects two diagram vertices whenever the free sampled
-grid connects them (every free grid edge maps to a roadmap edge), so "no path" means no path
-through free vertices of the sampled grid whose edges pass dense checking.
+Resolution completeness: "no path" means no connection on the diagram as sampled (tie points
+on an ``h`` grid, slices ``dphi`` apart, links within ``link_radius``); passages narrower than
+about a grid spacing can be missed. Different singularity cells are an exact "no path".
 """
 import math
 import time
