@@ -52,6 +52,7 @@ def test_lockstep_coverage_run_records_every_sonar_range(tmp_path):
     assert sweeps >= 25
     assert len(sent) == 16 * sweeps
     got = _recorded_stamps(bag, '/sonar/ranges')
+    print(f'one process: {len(sent)} Range messages published, {len(got)} recorded')
     assert len(got) == len(sent), (len(got), len(sent))
     assert Counter(got) == Counter(sent)
     assert all(n == 16 for n in Counter(got).values())
@@ -97,6 +98,7 @@ def test_recorder_in_its_own_process_records_every_sonar_range(tmp_path):
         if sim is not None:
             sim.kill()
     got = _recorded_stamps(bag, '/sonar/ranges')
+    print(f'across processes: {len(sent)} Range messages published, {len(got)} recorded')
     assert len(sent) >= 16 * 40
     assert len(got) == len(sent), (len(got), len(sent))
     assert Counter(got) == Counter(sent)
