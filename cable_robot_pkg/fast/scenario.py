@@ -24,6 +24,7 @@ from paramotion.errors import UserError
 from paramotion.launch_xml import load as load_launch
 from paramotion.launch_xml import recorded_topics
 from paramotion.scenario_io import add_output_args, output_dir, write_json
+from paramotion.sweep import add_dask_args, run_args, run_tasks
 
 # The graph (nodes, parameters, recorded topics) is described once, in
 # launch/fast.launch.xml; this runner composes it in one process.
@@ -337,6 +338,22 @@ def _run(args):
     return 0
 
 
+def sweep_case(case):
+    """One case of ``paramotion fast sweep``: a whole graph run (its own private ROS domain)
+    for ``case['mode']`` at ``case['latency_s']``, evaluated into one row of sweep.json.
+    Module-level so that Dask can ship it to a worker process."""
+    run = run_graph(case['duration_s'], case['config'], case['wind'], case['latency_s'], True,
+                    mode=case['mode'])
+    res, (t, fe, fr, te) = evaluate_run(run, case['settle_s'])
+    half = len(fe) // 2
+    growing = _rms(fe[half:]) > 3.0 * _rms(fe[:half]) + 1e-3
+    unstable = is_unstable(run['clip_count'], growing, res['feed_rms_position_mm'],
+                           res['trolley_rms_position_mm'])
+    return {'mode': case['mode'], 'latency_s': case['latency_s'], 'unstable': unstable,
+            'stroke_clips': run['clip_count'], 'compensation_gain': run['compensation_gain'],
+            **res}
+
+
 def _sweep(args):
     _check_args(args)
     try:
@@ -346,25 +363,17 @@ def _sweep(args):
             from None
     if not latencies or any(not (0.0 <= x <= 0.2) for x in latencies):
         raise UserError(f'--latencies {args.latencies!r}: each must be in [0, 0.2] s')
-    rows = []
+    cases = [{'mode': mode, 'latency_s': lat, 'duration_s': args.duration,
+              'config': args.config, 'wind': args.wind, 'settle_s': args.settle}
+             for mode in ('naive', 'predictive') for lat in latencies]
     with output_dir(args.out, args.overwrite) as tmp:
-        for mode in ('naive', 'predictive'):
-            for lat in latencies:
-                run = run_graph(args.duration, args.config, args.wind, lat, True, mode=mode)
-                res, (t, fe, fr, te) = evaluate_run(run, args.settle)
-                half = len(fe) // 2
-                growing = _rms(fe[half:]) > 3.0 * _rms(fe[:half]) + 1e-3
-                unstable = is_unstable(run['clip_count'], growing,
-                                       res['feed_rms_position_mm'],
-                                       res['trolley_rms_position_mm'])
-                rows.append({'mode': mode, 'latency_s': lat, 'unstable': unstable,
-                             'stroke_clips': run['clip_count'],
-                             'compensation_gain': run['compensation_gain'], **res})
-                print(f"{mode:>10} latency {1000 * lat:5.1f} ms: feed RMS "
-                      f"{res['feed_rms_position_mm']:8.2f} mm "
-                      f"{res['feed_rms_orientation_deg']:.4f} deg, trolley "
-                      f"{res['trolley_rms_position_mm']:.1f} mm"
-                      + ('  UNSTABLE' if unstable else ''), flush=True)
+        rows = run_tasks(sweep_case, cases, desc='fast sweep', **run_args(args))
+        for row in rows:
+            print(f"{row['mode']:>10} latency {1000 * row['latency_s']:5.1f} ms: feed RMS "
+                  f"{row['feed_rms_position_mm']:8.2f} mm "
+                  f"{row['feed_rms_orientation_deg']:.4f} deg, trolley "
+                  f"{row['trolley_rms_position_mm']:.1f} mm"
+                  + ('  UNSTABLE' if row['unstable'] else ''), flush=True)
         write_json(tmp / 'sweep.json', {'wind': args.wind, 'duration_s': args.duration,
                                         'settle_s': args.settle, 'rows': rows})
         _plot_sweep(tmp / 'latency_sweep.png', rows, args.wind)
@@ -508,6 +517,7 @@ def register(subparsers):
     sweep.add_argument('--latencies', default='0,0.01,0.02,0.03,0.04,0.05,0.06,0.07,0.08,'
                        '0.09,0.1', help='comma-separated latencies in s (default 0..0.1)')
     add_output_args(sweep)
+    add_dask_args(sweep)
     sweep.set_defaults(func=_sweep)
     bench = sub.add_parser('bench', help='real-time factor and controller update times')
     common(bench, 10.0)

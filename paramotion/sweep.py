@@ -1,0 +1,117 @@
+"""Run the independent cases of a sweep as tasks on Dask (or serially), results in case order.
+
+Sweeps (``paramotion fast sweep``, ``paramotion workspace arrangements``, ``paramotion coverage
+sweep``) evaluate many independent cases, each CPU-bound Python and often a whole ROS graph.
+:func:`run_tasks` spreads them over processes: by default a ``LocalCluster`` on this machine
+with one single-threaded worker process per core (the GIL makes threads useless here, and a
+process per worker keeps each case's rclpy context apart), or an existing cluster given by its
+scheduler address. Each case runs with ``ROS_DOMAIN_ID`` unset (:func:`private_call`), so every
+:class:`paramotion.graph.Graph` it builds picks a private random DDS domain with discovery off,
+and cases running side by side never hear each other.
+
+Results come back in case order whatever the completion order, so a Dask run writes exactly
+what the serial run (``--serial``) writes. See docs/sweeps.md for a multi-machine cluster.
+"""
+import os
+
+from paramotion.errors import UserError
+
+
+def default_workers():
+    """Cores this process may use (the affinity mask, not the machine's count)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        return os.cpu_count() or 1
+
+
+def add_dask_args(parser):
+    """Add ``--scheduler``, ``--workers`` and ``--serial`` to a sweep's argument parser."""
+    parser.add_argument('--scheduler', default=None, metavar='tcp://HOST:8786',
+                        help='run the cases on this existing Dask scheduler (default: a local '
+                        'cluster of one-thread worker processes)')
+    parser.add_argument('--workers', type=int, default=None,
+                        help='worker processes of the local cluster (default: all cores)')
+    parser.add_argument('--serial', action='store_true',
+                        help='run the cases one after the other in this process (no Dask)')
+
+
+def run_args(args):
+    """The :func:`run_tasks` keyword arguments from parsed :func:`add_dask_args` options."""
+    return {'scheduler': getattr(args, 'scheduler', None),
+            'workers': getattr(args, 'workers', None),
+            'serial': getattr(args, 'serial', False)}
+
+
+def private_call(fn, case):
+    """``fn(case)`` with ``ROS_DOMAIN_ID`` unset, so every Graph the case builds takes a private
+    random domain with discovery off. A ``ROS_DOMAIN_ID`` set to watch one run live would
+    otherwise put all the cases running side by side in one shared domain where they hear each
+    other's topics (seen: different results than the serial run). Workers run one thread each,
+    so changing the environment for the call is safe there."""
+    old = os.environ.pop('ROS_DOMAIN_ID', None)
+    try:
+        return fn(case)
+    finally:
+        if old is not None:
+            os.environ['ROS_DOMAIN_ID'] = old
+
+
+def _progress_bar(total, desc, enabled):
+    from tqdm import tqdm
+    return tqdm(total=total, desc=desc, unit='case', disable=not enabled, leave=True)
+
+
+def run_tasks(fn, cases, scheduler=None, workers=None, progress=True, serial=False,
+              desc='cases'):
+    """``[fn(case) for case in cases]``, the calls spread over a Dask cluster.
+
+    ``fn`` must be a module-level (picklable) function and each case picklable. With
+    ``serial`` the calls run here, in order. Otherwise, with ``scheduler`` (``tcp://HOST:PORT``)
+    the cases go to that cluster; without, to a ``LocalCluster`` of ``workers`` (default: all
+    cores, never more than there are cases) one-thread worker processes, closed on return. A
+    tqdm bar counts finished cases when ``progress``. The first failing case's exception is
+    raised (the other tasks are cancelled).
+    """
+    cases = list(cases)
+    if workers is not None and int(workers) < 1:
+        raise UserError(f'--workers {workers}: must be at least 1')
+    if scheduler is not None and not str(scheduler).strip():
+        raise UserError('--scheduler: empty address (expected tcp://HOST:8786)')
+    if serial or not cases:
+        results = []
+        with _progress_bar(len(cases), desc, progress) as bar:
+            for case in cases:
+                results.append(private_call(fn, case))
+                bar.update(1)
+        return results
+    from dask.distributed import Client, LocalCluster, as_completed
+
+    cluster = None
+    if scheduler is None:
+        n = min(int(workers or default_workers()), len(cases))
+        # Processes, one thread each: every case is CPU-bound Python holding the GIL. No
+        # dashboard (its port could clash with another sweep's on a shared machine).
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                               dashboard_address=None)
+    try:
+        try:
+            client = Client(cluster if cluster is not None else scheduler, timeout='20s')
+        except OSError as exc:
+            raise UserError(f'--scheduler {scheduler}: cannot connect ({exc})') from None
+        with client:
+            futures = [client.submit(private_call, fn, case, pure=False) for case in cases]
+            index = {f.key: k for k, f in enumerate(futures)}
+            results = [None] * len(cases)
+            with _progress_bar(len(cases), desc, progress) as bar:
+                try:
+                    for future in as_completed(futures):
+                        results[index[future.key]] = future.result()
+                        bar.update(1)
+                except BaseException:
+                    client.cancel(futures)
+                    raise
+            return results
+    finally:
+        if cluster is not None:
+            cluster.close()
