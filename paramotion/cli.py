@@ -21,6 +21,7 @@ SUBCOMMAND_MODULES = [
     'paramotion.voronoi.cli',             # paramotion voronoi ...
     'paramotion.launch',                  # paramotion launch FILE|NAME [name:=value ...]
     'paramotion.demo',                    # paramotion demo (README command 1)
+    'paramotion.bench',                   # paramotion bench [--json]
 ]
 
 
