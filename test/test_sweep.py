@@ -73,3 +73,18 @@ def test_fast_sweep_on_dask_writes_the_serial_result(tmp_path):
     dask = json.loads((tmp_path / 'dask' / 'sweep.json').read_text())
     assert [r['mode'] for r in serial['rows']] == ['naive', 'predictive']
     assert dask == serial
+
+
+def _dask_map(fn, cases):
+    return run_tasks(fn, cases, workers=2, progress=False)
+
+
+def test_arrangement_search_on_dask_equals_serial():
+    from cable_robot_pkg.cdrpm.arrangements import search_edge_arrangements
+    from cable_robot_pkg.cdrpm.description import load_description
+    d = load_description(None)
+    size = (d.frame_half_size, d.platform_half_size, d.cable_radius)
+    serial = search_edge_arrangements(*size, pitch=0.5, step=0.4, keep=3)
+    dask = search_edge_arrangements(*size, pitch=0.5, step=0.4, keep=3, map_cases=_dask_map)
+    assert len(serial[0]) == 3 and serial[1]['home_ok'] > 3
+    assert json.dumps(dask, sort_keys=True) == json.dumps(serial, sort_keys=True)

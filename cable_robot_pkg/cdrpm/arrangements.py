@@ -283,11 +283,40 @@ def box_scores(desc, points, rotations):
     return 100.0 * both / total, 100.0 * free_n / total, 100.0 * closed_n / total
 
 
+def _map_in_order(fn, cases):
+    """The default ``map_cases`` of the searches: ``[fn(c) for c in cases]`` here."""
+    return [fn(case) for case in cases]
+
+
+def _edge_coarse_case(case):
+    """One candidate of :func:`search_edge_arrangements`: ``None`` unless wrench-closed and
+    collision-free at every home orientation, else its coarse :func:`box_scores`."""
+    desc, home_orientations, coarse, coarse_rots = case
+    closed, free, _ = home_check(desc, home_orientations)
+    if not (closed and free):
+        return None
+    return box_scores(desc, coarse, coarse_rots)
+
+
+def _edge_final_case(case):
+    """One of the best coarse candidates scored on the fine grid: its result row."""
+    a0, a1, desc, gap, points, rots = case
+    both, free, closed = box_scores(desc, points, rots)
+    zero = grid_scores(desc, points)
+    return {'anchor0': a0.tolist(), 'anchor1': a1.tolist(),
+            'box_both_percent': both, 'box_collision_free_percent': free,
+            'box_wrench_closed_percent': closed,
+            'zero_rotation_both_percent': zero[0],
+            'zero_rotation_collision_free_percent': zero[1],
+            'zero_rotation_wrench_closed_percent': zero[2],
+            'home_min_gap_m': gap}
+
+
 def search_edge_arrangements(frame_half_size, platform_half_size, cable_radius, pitch=0.1,
                              min_home_gap=0.02, theta_deg=SCORE_THETA_DEG,
                              home_angle_step_deg=10.0, coarse_step=0.4,
                              coarse_angle_step_deg=60.0, step=0.2, angle_step_deg=10.0,
-                             keep=40, progress=False):
+                             keep=40, progress=False, map_cases=None):
     """Search the D2-symmetric edge-anchored arrangements; best first.
 
     Candidates: every pair of frame anchors from :func:`edge_anchor_candidates` (``pitch``)
@@ -301,7 +330,9 @@ def search_edge_arrangements(frame_half_size, platform_half_size, cable_radius, 
     collision-free and wrench-closed (:func:`box_scores`), first on a ``coarse_step`` grid with
     ``coarse_angle_step_deg`` sampling, then for the best ``keep`` on the ``step`` grid with
     ``angle_step_deg`` sampling; ties broken by the collision-free share and the home gap.
-    Returns ``(rows, stats)``.
+    ``map_cases(fn, cases)`` evaluates the independent candidates (default: in order, here;
+    ``paramotion workspace arrangements`` passes :func:`paramotion.sweep.run_tasks`); the
+    result does not depend on it. Returns ``(rows, stats)``.
     """
     from cable_robot_pkg.cdrpm.workspace import orientation_samples
 
@@ -309,38 +340,27 @@ def search_edge_arrangements(frame_half_size, platform_half_size, cable_radius, 
     platform_half_size = np.asarray(platform_half_size, dtype=float)
     home_orientations = orientation_samples(theta_deg, home_angle_step_deg)
     stats = {'home_ok': 0, 'home_orientations': int(len(home_orientations))}
-    survivors = []
-    for a0, a1, desc, gap in _home_candidates(frame_half_size, platform_half_size,
-                                              cable_radius, pitch, min_home_gap, stats,
-                                              progress):
-        closed, free, _ = home_check(desc, home_orientations)
-        if closed and free:
-            survivors.append((a0, a1, desc, gap))
+    map_cases = _map_in_order if map_cases is None else map_cases
+    candidates = list(_home_candidates(frame_half_size, platform_half_size, cable_radius, pitch,
+                                       min_home_gap, stats, progress))
+    if not candidates:
+        return [], stats
+    coarse = grid_points(grid_axes(candidates[0][2], coarse_step))
+    coarse_rots = rotation_matrix_deg(*orientation_samples(theta_deg, coarse_angle_step_deg).T)
+    scored = map_cases(_edge_coarse_case, [(c[2], home_orientations, coarse, coarse_rots)
+                                           for c in candidates])
+    survivors = [c for c, score in zip(candidates, scored) if score is not None]
+    scores = [score for score in scored if score is not None]
     stats['home_ok'] = len(survivors)
     if not survivors:
         return [], stats
-    coarse = grid_points(grid_axes(survivors[0][2], coarse_step))
-    coarse_rots = rotation_matrix_deg(*orientation_samples(theta_deg, coarse_angle_step_deg).T)
-    ranked = survivors
-    if progress:
-        from tqdm import tqdm
-        ranked = tqdm(survivors, desc='scoring', unit='arrangement', leave=False)
-    first = sorted(((box_scores(s[2], coarse, coarse_rots), k) for k, s in enumerate(ranked)),
+    first = sorted(((score, k) for k, score in enumerate(scores)),
                    key=lambda r: (-r[0][0], -r[0][1], -survivors[r[1]][3]))
     points = grid_points(grid_axes(survivors[0][2], step))
     rots = rotation_matrix_deg(*orientation_samples(theta_deg, angle_step_deg).T)
-    rows = []
-    for _, k in first[:keep]:
-        a0, a1, desc, gap = survivors[k]
-        both, free, closed = box_scores(desc, points, rots)
-        zero = grid_scores(desc, points)
-        rows.append({'anchor0': a0.tolist(), 'anchor1': a1.tolist(),
-                     'box_both_percent': both, 'box_collision_free_percent': free,
-                     'box_wrench_closed_percent': closed,
-                     'zero_rotation_both_percent': zero[0],
-                     'zero_rotation_collision_free_percent': zero[1],
-                     'zero_rotation_wrench_closed_percent': zero[2],
-                     'home_min_gap_m': gap})
+    best = [survivors[k] for _, k in first[:keep]]
+    rows = map_cases(_edge_final_case, [(a0, a1, desc, gap, points, rots)
+                                        for a0, a1, desc, gap in best])
     rows.sort(key=lambda r: (-r['box_both_percent'], -r['box_collision_free_percent'],
                              -r['home_min_gap_m'], r['anchor0'], r['anchor1']))
     return rows, stats
@@ -405,10 +425,35 @@ def table2_in_frame(desc, points, rotations_deg=None):
     return np.array(out)
 
 
+def _table2_case(case):
+    """One candidate of :func:`search_table2_arrangements`: ``(stages passed, row or None)``;
+    stages: 1 Table II screen, 2 Table II on the fine grid, 3 TOW box (then the row)."""
+    from cable_robot_pkg.cdrpm.workspace import contains_box, total_orientation_workspace
+    (a0, a1, desc, gap, paper, screen_points, screen_tolerance, points, tolerance, tow_step,
+     box) = case
+    if np.max(np.abs(table2_in_frame(desc, screen_points) - paper)) > screen_tolerance:
+        return 0, None
+    shares = table2_in_frame(desc, points)
+    worst = float(np.max(np.abs(shares - paper)))
+    if worst > tolerance:
+        return 1, None
+    tow = total_orientation_workspace(desc, (30, 30, 10), step=tow_step)
+    if not contains_box(tow.accessible, tow.axes, box):
+        return 2, None
+    free = classify_poses(desc, points, np.eye(3)) == 0
+    closed, _ = wrench_closure(desc, points, np.eye(3))
+    return 3, {'anchor0': a0.tolist(), 'anchor1': a1.tolist(),
+               'table2_in_frame_percent': shares.tolist(),
+               'table2_max_difference_points': worst,
+               'tow_percent': tow.accessible_percentage,
+               'zero_rotation_both_percent': 100.0 * float(np.mean(free & closed)),
+               'home_min_gap_m': gap}
+
+
 def search_table2_arrangements(frame_half_size, platform_half_size, cable_radius, pitch=0.1,
                                min_home_gap=0.02, screen_step=0.2, screen_tolerance=8.0,
                                step=0.05, tolerance=5.0, tow_step=0.1, tow_box_m=None,
-                               progress=False):
+                               progress=False, map_cases=None):
     """Identify the Neuron from the paper's published workspace results; best first.
 
     The paper gives no anchor coordinates but measures its arrangement: Table II (share of
@@ -425,47 +470,31 @@ def search_table2_arrangements(frame_half_size, platform_half_size, cable_radius
 
     Ranked by the largest Table II difference on the ``step`` grid (best fit first), ties by
     the wrench-closed share of the zero-rotation grid. Held out for validation: the workpiece
-    study (IV-D) and the orientation workspace (Fig. 7). Returns ``(rows, stats)``.
+    study (IV-D) and the orientation workspace (Fig. 7). ``map_cases(fn, cases)`` evaluates the
+    independent candidates (see :func:`search_edge_arrangements`). Returns ``(rows, stats)``.
     """
-    from cable_robot_pkg.cdrpm.workspace import (
-        PAPER_TOW_BOX_M,
-        TABLE2_ROWS,
-        contains_box,
-        total_orientation_workspace,
-    )
+    from cable_robot_pkg.cdrpm.workspace import PAPER_TOW_BOX_M, TABLE2_ROWS
     frame_half_size = np.asarray(frame_half_size, dtype=float)
     platform_half_size = np.asarray(platform_half_size, dtype=float)
     paper = np.array([row[1] for row in TABLE2_ROWS])
     box = PAPER_TOW_BOX_M if tow_box_m is None else tow_box_m
     stats = {'screen_ok': 0, 'table2_ok': 0, 'tow_box_ok': 0}
-    screen_points = points = None
+    candidates = list(_home_candidates(frame_half_size, platform_half_size, cable_radius, pitch,
+                                       min_home_gap, stats, progress))
     rows = []
-    for a0, a1, desc, gap in _home_candidates(frame_half_size, platform_half_size,
-                                              cable_radius, pitch, min_home_gap, stats,
-                                              progress):
-        if screen_points is None:
-            screen_points = grid_points(grid_axes(desc, screen_step))
-            points = grid_points(grid_axes(desc, step))
-        if np.max(np.abs(table2_in_frame(desc, screen_points) - paper)) > screen_tolerance:
-            continue
-        stats['screen_ok'] += 1
-        shares = table2_in_frame(desc, points)
-        worst = float(np.max(np.abs(shares - paper)))
-        if worst > tolerance:
-            continue
-        stats['table2_ok'] += 1
-        tow = total_orientation_workspace(desc, (30, 30, 10), step=tow_step)
-        if not contains_box(tow.accessible, tow.axes, box):
-            continue
-        stats['tow_box_ok'] += 1
-        free = classify_poses(desc, points, np.eye(3)) == 0
-        closed, _ = wrench_closure(desc, points, np.eye(3))
-        rows.append({'anchor0': a0.tolist(), 'anchor1': a1.tolist(),
-                     'table2_in_frame_percent': shares.tolist(),
-                     'table2_max_difference_points': worst,
-                     'tow_percent': tow.accessible_percentage,
-                     'zero_rotation_both_percent': 100.0 * float(np.mean(free & closed)),
-                     'home_min_gap_m': gap})
+    if candidates:
+        desc0 = candidates[0][2]
+        screen_points = grid_points(grid_axes(desc0, screen_step))
+        points = grid_points(grid_axes(desc0, step))
+        map_cases = _map_in_order if map_cases is None else map_cases
+        results = map_cases(_table2_case, [
+            (a0, a1, desc, gap, paper, screen_points, screen_tolerance, points, tolerance,
+             tow_step, box) for a0, a1, desc, gap in candidates])
+        for passed, row in results:
+            for stage, key in enumerate(('screen_ok', 'table2_ok', 'tow_box_ok'), 1):
+                stats[key] += int(passed >= stage)
+            if row is not None:
+                rows.append(row)
     rows.sort(key=lambda r: (round(r['table2_max_difference_points'], 6),
                              -r['zero_rotation_both_percent'], r['anchor0'], r['anchor1']))
     return rows, stats

@@ -125,6 +125,8 @@ def register(subparsers):
     p.add_argument('--step', type=float, default=0.2, help='grid step in m (default 0.2)')
     p.add_argument('--top', type=int, default=12, help='rows to print (default 12)')
     p.add_argument('--out', help='optional directory for result.json')
+    from paramotion.sweep import add_dask_args
+    add_dask_args(p)  # candidates evaluated as Dask tasks (docs/sweeps.md)
     p.set_defaults(func=arrangements.run)
 
     p = sub.add_parser('bench', help='COW poses per second with all checks',

@@ -30,7 +30,7 @@ def run(args):
     rows, stats = search_edge_arrangements(desc.frame_half_size, desc.platform_half_size,
                                            desc.cable_radius, pitch=args.pitch,
                                            min_home_gap=args.min_gap, step=args.step,
-                                           progress=True)
+                                           progress=True, map_cases=_mapper(args))
     shipped = _shipped_names(desc.platform_half_size)
     for rank, row in enumerate(rows, 1):
         row['rank'] = rank
@@ -61,11 +61,21 @@ def run(args):
     return 0
 
 
+def _mapper(args):
+    """Evaluate the search's independent candidates as Dask tasks (or --serial)."""
+    from paramotion.sweep import run_args, run_tasks
+
+    def map_cases(fn, cases):
+        return run_tasks(fn, cases, desc='candidates', **run_args(args))
+    return map_cases
+
+
 def _table2_arrangements(args, desc, out):
     from cable_robot_pkg.cdrpm.arrangements import search_table2_arrangements
     rows, stats = search_table2_arrangements(desc.frame_half_size, desc.platform_half_size,
                                              desc.cable_radius, pitch=args.pitch,
-                                             min_home_gap=args.min_gap, progress=True)
+                                             min_home_gap=args.min_gap, progress=True,
+                                             map_cases=_mapper(args))
     shipped = _shipped_names(desc.platform_half_size)
     for rank, row in enumerate(rows, 1):
         row['rank'] = rank
