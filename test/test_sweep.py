@@ -88,3 +88,26 @@ def test_arrangement_search_on_dask_equals_serial():
     dask = search_edge_arrangements(*size, pitch=0.5, step=0.4, keep=3, map_cases=_dask_map)
     assert len(serial[0]) == 3 and serial[1]['home_ok'] > 3
     assert json.dumps(dask, sort_keys=True) == json.dumps(serial, sort_keys=True)
+
+
+def test_coverage_sweep_on_dask_writes_the_serial_results(tmp_path, capsys):
+    from coverage_pkg.worldgen import write_worlds
+    worlds = tmp_path / 'worlds'
+    write_worlds(str(worlds), 2, 0, None)
+    base = ['coverage', 'sweep', '--worlds', str(worlds), '--max-sim-time', '20']
+    assert main(base + ['--out', str(tmp_path / 'serial'), '--serial']) == 0
+    assert main(base + ['--out', str(tmp_path / 'dask'), '--workers', '2']) == 0
+    names = sorted(p.name for p in (tmp_path / 'serial').iterdir())
+    assert names == sorted(p.name for p in (tmp_path / 'dask').iterdir())
+    assert 'summary.json' in names and len(names) == 3
+    for name in names:
+        serial = json.loads((tmp_path / 'serial' / name).read_text())
+        dask = json.loads((tmp_path / 'dask' / name).read_text())
+        for result in (serial, dask):  # wall-clock timings are the only expected difference
+            result.pop('wall_time_s', None)
+            result.pop('planner_update_ms', None)
+        assert dask == serial, name
+    summary = json.loads((tmp_path / 'serial' / 'summary.json').read_text())
+    assert len(summary['rows']) == 2 and summary['rows'][0]['path_length_m'] > 0
+    assert main(['coverage', '--out', str(tmp_path / 'x')]) == 2
+    assert '--world FILE is required' in capsys.readouterr().err
