@@ -204,9 +204,18 @@ def symmetric_description(anchor0, anchor1, frame_half_size, platform_half_size,
 
 
 def _cable_set(signs, anchors, transform=None):
-    transform = np.eye(3) if transform is None else transform
-    return frozenset((tuple(np.round(transform @ s, 9) + 0.0),
-                      tuple(np.round(transform @ a, 9) + 0.0)) for s, a in zip(signs, anchors))
+    """The cables as a set of (platform sign, frame anchor) pairs rounded to 1e-9, optionally
+    mapped by ``transform`` (a signed permutation or -I: exact in floating point). Rounded
+    once per array, not per vector: this runs for every candidate pair under every symmetry
+    of the boxes and dominated the search's serial part."""
+    signs = np.asarray(signs, dtype=float)
+    anchors = np.asarray(anchors, dtype=float)
+    if transform is not None:
+        signs = signs @ transform.T
+        anchors = anchors @ transform.T
+    s = (np.round(signs, 9) + 0.0).tolist()
+    a = (np.round(anchors, 9) + 0.0).tolist()
+    return frozenset(zip(map(tuple, s), map(tuple, a)))
 
 
 def _box_symmetries(frame_half_size, platform_half_size):
