@@ -1,4 +1,5 @@
 """Architecture rule: the algorithm modules (each paper's math) import no rclpy."""
+import ast
 import subprocess
 import sys
 from pathlib import Path
@@ -9,6 +10,7 @@ ALGORITHMS = [
     'paramotion.gough_stewart', 'paramotion.range_sensing', 'paramotion.smoke.control',
     'paramotion.voronoi.predicates', 'paramotion.voronoi.distance', 'paramotion.voronoi.planar',
     'paramotion.voronoi.diagram', 'paramotion.voronoi.planner', 'paramotion.voronoi.spatial321',
+    'paramotion.voronoi.spatial321_roadmap',
     'coverage_pkg.world', 'coverage_pkg.sonar', 'coverage_pkg.mapping', 'coverage_pkg.gvd',
     'coverage_pkg.morse', 'coverage_pkg.hierarchical_graph', 'coverage_pkg.planner',
     'coverage_pkg.cvs', 'coverage_pkg.baseline',
@@ -33,6 +35,47 @@ def test_algorithm_modules_do_not_import_rclpy():
                           text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert proc.stdout.strip().splitlines()[-1] == '[]'
+
+
+# Modules allowed to use rclpy: the nodes (``*_node``), and the ROS plumbing, scenario runners
+# and command-line front ends that build or drive graphs. Everything else in the four packages
+# is an algorithm module (or plain tooling) and must not mention rclpy at all.
+ROS_SIDE = ('_node', '.scenario', '.cli', '.bench', '.sweep', '.demo', '.launch', '.launch_xml',
+            '.graph', '.node', '.qos', '.clock', '.clock_watchdog', '.sim', '.msgtypes',
+            '.ros_messages', '.qos_yaml', '.reader')
+
+
+def _imports_rclpy(path):
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            names = [node.module or '']
+        else:
+            continue
+        if any(n == 'rclpy' or n.startswith('rclpy.') for n in names):
+            return True
+    return False
+
+
+def test_no_module_outside_the_ros_side_imports_rclpy_even_lazily():
+    """Found by walking the source, so a new algorithm module is covered without being listed:
+    not even a function-level ``import rclpy`` outside nodes, plumbing and front ends."""
+    checked, offenders = 0, []
+    for pkg in ('paramotion', 'coverage_pkg', 'climber_pkg', 'cable_robot_pkg'):
+        for path in sorted((REPO / pkg).rglob('*.py')):
+            rel = path.relative_to(REPO).with_suffix('')
+            module = '.'.join(rel.parts)
+            if module.endswith('.__init__'):
+                module = module[:-len('.__init__')]
+            if '.cli.' in module + '.' or module.endswith(ROS_SIDE):
+                continue
+            checked += 1
+            if _imports_rclpy(path):
+                offenders.append(module)
+    assert checked >= 60
+    assert offenders == []
+    assert set(ALGORITHMS) <= {m for m in ALGORITHMS if not m.endswith(ROS_SIDE)}
 
 
 def test_each_robot_has_one_room():
