@@ -79,7 +79,8 @@ def test_fast_graph_across_processes_holds_the_feed_within_spec(tmp_path):
         w.subscribe(PoseStamped, '/fast/feed_target',
                     lambda m: target.append(sample(m)), STATE_QOS)
         settle, window = 1.5, 0.8
-        assert w.spin_until(lambda: feed and feed[-1][0] >= settle + window, 58, launch), (
+        # 2.3 s of sim at 0.05x is 46 s of wall time; the rest is start-up on a busy machine.
+        assert w.spin_until(lambda: feed and feed[-1][0] >= settle + window, 110, launch), (
             feed[-1][0] if feed else 'no feed pose', launch.output()[-3000:])
         _check_clean_stop(launch)
     tt = np.array([t for t, _, _ in target])

@@ -11,7 +11,10 @@ Modules, in reading order:
 * :mod:`~paramotion.voronoi.diagram` - the simplified Voronoi diagram per orientation slice
   and its roadmap across orientations (section 5);
 * :mod:`~paramotion.voronoi.planner` - retraction onto the diagram, search, dense verification;
-* :mod:`~paramotion.voronoi.spatial321` - the 3-2-1 platform of Fig. 1 in a polyhedral scene;
+* :mod:`~paramotion.voronoi.spatial321` - the 3-2-1 platform of Fig. 1 in a polyhedral scene
+  (contact predicates, containment, leg-leg contacts, leg-length limits, rho);
+* :mod:`~paramotion.voronoi.spatial321_roadmap` - its planner: rho-gradient retraction to the
+  ties of two contact predicates, roadmap edges traced on the diagram, dense verification;
 * :mod:`~paramotion.voronoi.figures` - Figs. 2 and 3 as images.
 
 Only :mod:`~paramotion.voronoi.planner_node` imports rclpy.
