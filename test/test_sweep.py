@@ -7,7 +7,7 @@ import pytest
 
 from paramotion.cli import main
 from paramotion.errors import UserError
-from paramotion.sweep import run_tasks
+from paramotion.sweep import chunked, run_tasks
 
 
 def _square_slowly(case):
@@ -46,6 +46,18 @@ def test_local_cluster_matches_serial_in_case_order():
     dask = run_tasks(_square_slowly, cases, workers=2, progress=False)
     assert serial == [{'case': c, 'square': c * c} for c in cases]
     assert dask == serial
+
+
+def _triple(case):
+    return 3 * case
+
+
+def test_many_cases_travel_in_chunks_and_come_back_in_order():
+    assert chunked(list(range(10)), 2) == [[0, 1], [2, 3], [4, 5], [6, 7], [8, 9]]
+    assert chunked(list(range(3)), 2) == [[0], [1], [2]]
+    assert [len(c) for c in chunked(list(range(50)), 2)] == [7] * 7 + [1]
+    cases = list(range(50))
+    assert run_tasks(_triple, cases, workers=2, progress=False) == [3 * c for c in cases]
 
 
 def test_failing_case_raises_and_bad_options_refused():

@@ -350,8 +350,8 @@ def search_edge_arrangements(frame_half_size, platform_half_size, cable_radius, 
     home_orientations = orientation_samples(theta_deg, home_angle_step_deg)
     stats = {'home_ok': 0, 'home_orientations': int(len(home_orientations))}
     map_cases = _map_in_order if map_cases is None else map_cases
-    candidates = list(_home_candidates(frame_half_size, platform_half_size, cable_radius, pitch,
-                                       min_home_gap, stats, progress))
+    candidates = _home_candidates(frame_half_size, platform_half_size, cable_radius, pitch,
+                                  min_home_gap, stats, progress, map_cases)
     if not candidates:
         return [], stats
     coarse = grid_points(grid_axes(candidates[0][2], coarse_step))
@@ -375,45 +375,71 @@ def search_edge_arrangements(frame_half_size, platform_half_size, cable_radius, 
     return rows, stats
 
 
+def _pairs_with_properties(case):
+    """Stage 1 of :func:`_home_candidates` for one first anchor ``i``: ``(j, key)`` for every
+    second anchor ``j`` whose arrangement has all four :func:`arrangement_properties`, with
+    the key of its class up to the symmetries of the boxes (the smallest sorted cable set over
+    them). Independent of every other ``i``, so the anchor rows run as parallel cases."""
+    i, anchors, platform_half_size, symmetries = case
+    out = []
+    for j in range(len(anchors)):
+        signs, cable_anchors = symmetric_cables(anchors[i], anchors[j])
+        props = arrangement_properties(signs, cable_anchors, platform_half_size)
+        if all(props.values()):
+            key = min(tuple(sorted(_cable_set(signs, cable_anchors, g))) for g in symmetries)
+            out.append((j, key))
+    return out
+
+
+def _home_case(case):
+    """Stage 2 of :func:`_home_candidates` for one class representative: its description and
+    :func:`home_check` at zero rotation."""
+    anchor0, anchor1, frame_half_size, platform_half_size, cable_radius = case
+    desc = symmetric_description(anchor0, anchor1, frame_half_size, platform_half_size,
+                                 cable_radius)
+    return desc, home_check(desc)
+
+
 def _home_candidates(frame_half_size, platform_half_size, cable_radius, pitch, min_home_gap,
-                     stats, progress=False):
-    """Yield ``(anchor0, anchor1, description, home_gap)`` once per class of edge-anchored,
+                     stats, progress=False, map_cases=None):
+    """``[(anchor0, anchor1, description, home_gap)]`` once per class of edge-anchored,
     D2-symmetric arrangements related by a symmetry or mirror of the boxes, for those with all
     four :func:`arrangement_properties` that are wrench-closed and collision-free with the
     centroid at O and zero rotation and keep every two cables ``min_home_gap`` (m) apart there.
-    Counts go into ``stats``."""
+    The class representative is its first pair in (i, j) order, whatever ``map_cases`` runs
+    the two independent stages on (rows of pairs, then one home check per class). Counts go
+    into ``stats``."""
+    map_cases = _map_in_order if map_cases is None else map_cases
     anchors = edge_anchor_candidates(frame_half_size, pitch)
     symmetries = _box_symmetries(frame_half_size, platform_half_size)
     stats.update({'anchor_points': int(len(anchors)), 'pairs': int(len(anchors) ** 2),
                   'with_properties': 0, 'distinct_up_to_symmetry': 0,
                   'home_closed_and_free': 0, 'home_gap_ok': 0})
-    seen = set()
-    pairs = itertools.product(range(len(anchors)), repeat=2)
-    if progress:
+    rows = [(i, anchors, platform_half_size, symmetries) for i in range(len(anchors))]
+    if progress and map_cases is _map_in_order:
         from tqdm import tqdm
-        pairs = tqdm(pairs, total=len(anchors) ** 2, desc='anchor pairs', unit='pair',
-                     leave=False, mininterval=1.0)
-    for i, j in pairs:
-        signs, cable_anchors = symmetric_cables(anchors[i], anchors[j])
-        props = arrangement_properties(signs, cable_anchors, platform_half_size)
-        if not all(props.values()):
-            continue
-        stats['with_properties'] += 1
-        key = min(tuple(sorted(_cable_set(signs, cable_anchors, g))) for g in symmetries)
-        if key in seen:
-            continue
-        seen.add(key)
-        stats['distinct_up_to_symmetry'] = len(seen)
-        desc = symmetric_description(anchors[i], anchors[j], frame_half_size,
-                                     platform_half_size, cable_radius)
-        closed, free, gap = home_check(desc)
+        rows = tqdm(rows, desc='anchor rows', unit='row', leave=False, mininterval=1.0)
+    found = map_cases(_pairs_with_properties, rows)
+    seen, firsts = set(), []
+    for i, row in enumerate(found):
+        stats['with_properties'] += len(row)
+        for j, key in row:
+            if key not in seen:
+                seen.add(key)
+                firsts.append((i, j))
+    stats['distinct_up_to_symmetry'] = len(seen)
+    checked = map_cases(_home_case, [(anchors[i], anchors[j], frame_half_size,
+                                      platform_half_size, cable_radius) for i, j in firsts])
+    out = []
+    for (i, j), (desc, (closed, free, gap)) in zip(firsts, checked):
         if not (closed and free):
             continue
         stats['home_closed_and_free'] += 1
         if gap < min_home_gap:
             continue
         stats['home_gap_ok'] += 1
-        yield anchors[i], anchors[j], desc, gap
+        out.append((anchors[i], anchors[j], desc, gap))
+    return out
 
 
 def table2_in_frame(desc, points, rotations_deg=None):
@@ -488,8 +514,8 @@ def search_table2_arrangements(frame_half_size, platform_half_size, cable_radius
     paper = np.array([row[1] for row in TABLE2_ROWS])
     box = PAPER_TOW_BOX_M if tow_box_m is None else tow_box_m
     stats = {'screen_ok': 0, 'table2_ok': 0, 'tow_box_ok': 0}
-    candidates = list(_home_candidates(frame_half_size, platform_half_size, cable_radius, pitch,
-                                       min_home_gap, stats, progress))
+    candidates = _home_candidates(frame_half_size, platform_half_size, cable_radius, pitch,
+                                  min_home_gap, stats, progress, map_cases)
     rows = []
     if candidates:
         desc0 = candidates[0][2]
