@@ -481,60 +481,94 @@ class VoronoiPlanner:
     def plan(self, start, goal, progress=None):
         """Plan from ``start`` to ``goal`` (each ``(x, y, phi_rad)``); see the module docs.
 
-        ``progress``: optional callable ``(stage: str)`` for progress reporting.
+        The steps: a singularity certificate (no search when start and goal lie in different
+        cells of the base-line singularities), retraction of both ends onto the diagram,
+        search along diagram edges in widening orientation windows, assembly and dense
+        verification of the path. ``progress``: optional callable ``(stage: str)``.
         """
         t0 = time.perf_counter()
         tick = progress or (lambda stage: None)
-        model = self.model
         start = np.asarray(start, dtype=float)
         goal = np.asarray(goal, dtype=float)
-        validate_configuration(model, start, 'start')
-        validate_configuration(model, goal, 'goal')
+        validate_configuration(self.model, start, 'start')
+        validate_configuration(self.model, goal, 'goal')
         stats = {}
 
         def result(status, reason='', **kw):
             return PlanResult(status, reason, planning_time=time.perf_counter() - t0,
                               stats=stats, **kw)
 
+        reason = self._singularity_certificate(start, goal)
+        if reason:
+            return result('no_path', reason)
+        tick('retract')
+        chains = self._retract_ends(start, goal, stats)
+        tick('slices')
+        found, xyz = self._search_windows(start, goal, chains, stats, tick)
+        if found is None:
+            return result('no_path', 'start and goal retract onto parts of the simplified '
+                          'Voronoi diagram that no verified diagram edge connects (diagram '
+                          f'sampled on a {self.h:g}-unit grid in slices '
+                          f'{math.degrees(self.dphi):g} deg apart)')
+        tick('verify')
+        return result('ok', **self._assemble(found, xyz, chains, stats))
+
+    def _singularity_certificate(self, start, goal):
+        """Why no path exists when start and goal lie on opposite sides of a base-line
+        singularity (a 3x3 determinant of the base points changes sign), else ``''``."""
+        model = self.model
         s_sign = model.singular_signs(start)
         g_sign = model.singular_signs(goal)
-        if np.any(s_sign != g_sign):
-            i = int(np.flatnonzero(s_sign != g_sign)[0])
-            key = model.singular_keys[i]
-            det = '[' + ' '.join(f'p{k}' for k in key) + ']'
-            return result('no_path', f'start and goal are in different singularity cells: '
-                          f'{det} is {s_sign[i]:+.0f} at the start and {g_sign[i]:+.0f} at '
-                          f'the goal, so every path crosses the singularity {det} = 0')
+        if not np.any(s_sign != g_sign):
+            return ''
+        i = int(np.flatnonzero(s_sign != g_sign)[0])
+        det = '[' + ' '.join(f'p{k}' for k in model.singular_keys[i]) + ']'
+        return (f'start and goal are in different singularity cells: {det} is '
+                f'{s_sign[i]:+.0f} at the start and {g_sign[i]:+.0f} at the goal, so every '
+                f'path crosses the singularity {det} = 0')
 
-        tick('retract')
+    def _retract_ends(self, start, goal, stats):
+        """The two retraction chains (rho ascent onto the diagram), each densely checked:
+        ``[(start chain, on diagram), (goal chain, on diagram)]``."""
         chains = []
         for name, q in (('start', start), ('goal', goal)):
             chain, on = self.retract(q)
-            ok = check_path(model, unwrap_phi(chain), self.check_step, self.check_dphi)[0]
+            ok = check_path(self.model, unwrap_phi(chain), self.check_step,
+                            self.check_dphi)[0]
             if not ok:  # rho increases along the climb; failing here is a bug
                 raise RuntimeError(f'{name} retraction failed dense checking')
             chains.append((chain, on))
         stats['retraction_on_diagram'] = [bool(chains[0][1]), bool(chains[1][1])]
-        tick('slices')
+        return chains
+
+    def _window_slices(self, start, goal, margin, s_slice, g_slice, s_k, g_k):
+        """The diagram slices of one orientation window in order along it (the start's and
+        goal's own slices included), and whether the window is every slice."""
+        ks, key = self._window(start[2], goal[2], margin)
+        full = len(ks) == len(self.phis)
+        entries = [(key(self.phis[k]), k, sl) for k, sl in zip(ks, self._uniform(ks))]
+        for k, sl in ((s_k, s_slice), (g_k, g_slice)):
+            if k is None or k not in ks:
+                entries.append((key(sl.phi), None, sl))
+        entries.sort(key=lambda e: e[0])
+        slices, index = [], {}
+        for e in entries:
+            if id(e[2]) not in index:
+                index[id(e[2])] = len(slices)
+                slices.append(e[2])
+        return slices, index, full
+
+    def _search_windows(self, start, goal, chains, stats, tick):
+        """Search along diagram edges in widening windows (the start-goal arc +- 2 slices,
+        +- 45 deg, then every slice); returns ``(found, node positions)``."""
+        model = self.model
         s_k, s_slice = self._slice_at(start[2])
         g_k, g_slice = self._slice_at(goal[2])
-        found = None
-        # Widening windows: the start-goal arc +- 2 slices, +- 45 deg, then every slice.
+        found, xyz = None, None
         margins = (2 * self.dphi, max(2 * self.dphi, math.radians(45)), None)
         for stage, margin in enumerate(margins):
-            ks, key = self._window(start[2], goal[2], margin)
-            full = len(ks) == len(self.phis)
-            entries = [(key(self.phis[k]), k, sl) for k, sl in zip(ks, self._uniform(ks))]
-            for k, sl in ((s_k, s_slice), (g_k, g_slice)):
-                if k is None or k not in ks:
-                    entries.append((key(sl.phi), None, sl))
-            entries.sort(key=lambda e: e[0])
-            slices = []
-            index = {}
-            for e in entries:
-                if id(e[2]) not in index:
-                    index[id(e[2])] = len(slices)
-                    slices.append(e[2])
+            slices, index, full = self._window_slices(start, goal, margin, s_slice, g_slice,
+                                                      s_k, g_k)
             ring = full and model.domain.periodic
             ends = [(index[id(s_slice)], chains[0][0][-1], chains[0][1]),
                     (index[id(g_slice)], chains[1][0][-1], chains[1][1])]
@@ -551,12 +585,12 @@ class VoronoiPlanner:
             if found is not None and (full or stats['bottleneck_rho']
                                       >= self.clearance_fraction * cap):
                 break
-        if found is None:
-            return result('no_path', 'start and goal retract onto parts of the simplified '
-                          'Voronoi diagram that no verified diagram edge connects (diagram '
-                          f'sampled on a {self.h:g}-unit grid in slices '
-                          f'{math.degrees(self.dphi):g} deg apart)')
-        tick('verify')
+        return found, xyz
+
+    def _assemble(self, found, xyz, chains, stats):
+        """The path: the start's climb, the diagram pieces and links, the goal's climb
+        reversed; densely verified; its on-diagram share and clearance profile."""
+        model = self.model
         seq, kinds = found
         s_chain, g_chain = chains[0][0], chains[1][0][::-1]
         way = np.vstack([s_chain, xyz[seq[1:-1]], g_chain])
@@ -581,10 +615,10 @@ class VoronoiPlanner:
         ds = np.diff(samples, axis=0)
         arc = np.r_[0.0, np.cumsum(np.sqrt(ds[:, 0] ** 2 + ds[:, 1] ** 2
                                            + (self.phi_scale * ds[:, 2]) ** 2))]
-        return result('ok', path=samples, waypoints=way, min_rho=min_rho,
-                      max_rho_step=float(np.max(np.abs(np.diff(rho)))) if len(rho) > 1 else 0.0,
-                      on_diagram_fraction=on / total if total > 0 else 1.0,
-                      segment_kinds=seg_kind, clearance=np.c_[arc, rho])
+        return {'path': samples, 'waypoints': way, 'min_rho': min_rho,
+                'max_rho_step': float(np.max(np.abs(np.diff(rho)))) if len(rho) > 1 else 0.0,
+                'on_diagram_fraction': on / total if total > 0 else 1.0,
+                'segment_kinds': seg_kind, 'clearance': np.c_[arc, rho]}
 
     def _bad_segments(self, a, b, floor=0.0):
         """Indices of the straight segments a[i] -> b[i] that fail dense checking (rho at or
