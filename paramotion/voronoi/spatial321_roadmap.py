@@ -337,6 +337,12 @@ class DiagramRoadmapPlanner:
 
     # -- planning ------------------------------------------------------------------------------
     def plan(self, start, goal, progress=None):
+        """Plan from ``start`` to ``goal`` (6-D poses). The steps: a singularity certificate,
+        Halton samples retracted onto the diagram with start and goal (:meth:`_roadmap_nodes`),
+        candidate edges between near nodes (:meth:`_candidate_edges`), a lazy shortest-path
+        search that traces and checks only the edges it is about to use
+        (:meth:`_lazy_search`), then the path assembled from the traced diagram pieces and
+        checked densely (:meth:`_assemble`)."""
         t0 = time.perf_counter()
         c0 = time.process_time()
         tick = progress or (lambda s: None)
@@ -360,6 +366,28 @@ class DiagramRoadmapPlanner:
             return result('no_path', f'start and goal are in different singularity cells: '
                           f'{det} changes sign, so every path crosses the singularity '
                           f'{det} = 0')
+        pts, ends = self._roadmap_nodes(start, goal, s_sign, stats, tick)
+        tick('search')
+        t_e = time.perf_counter()
+        a, b, weight, edge_of = self._candidate_edges(pts)
+        seq, polys, alive = self._lazy_search(pts, a, b, weight, edge_of, stats)
+        stats['edge_time_s'] = time.perf_counter() - t_e
+        if seq is None:
+            return result('no_path', 'start and goal retractions are in different connected '
+                          f'components of the diagram roadmap ({len(pts)} diagram points from '
+                          f'{self.n_samples} Halton samples, k = {self.k}; '
+                          f'{int((~alive).sum())} of {len(a)} edges refused by tracing along '
+                          f'the diagram every {self.probe_step:g} or by the dense check); '
+                          'more samples may connect them')
+        tick('verify')
+        return result('ok', **self._assemble(pts, seq, polys, edge_of, ends, stats))
+
+    def _roadmap_nodes(self, start, goal, s_sign, stats, tick):
+        """Free Halton samples in the start's singularity cell, retracted with start and goal
+        by rho ascent to the ties of two contact predicates. Returns the roadmap nodes (start,
+        goal, then the samples that reached a tie) and the two end chains (a retraction chain
+        when it checks densely, else the end itself)."""
+        m = self.model
         tick('sample')
         q = self.samples()
         rho = m.rho(q)
@@ -397,8 +425,13 @@ class DiagramRoadmapPlanner:
             stats.update(sample_tie_distance_median=float(np.median(before)),
                          node_tie_distance_median=float(np.median(after)),
                          node_tie_distance_max=float(np.max(after)))
-        tick('search')
-        t_e = time.perf_counter()
+        return pts, ends
+
+    def _candidate_edges(self, pts):
+        """Each node's ``k`` nearest nodes (scaled 6-D distance) as undirected candidate
+        edges ``(a, b)`` with ``a < b``, their straight length as the first weight, and the
+        index of each edge by its end pair."""
+        m = self.model
         tree = cKDTree(pts * m.scale)
         kk = min(self.k + 1, len(pts))
         _, nbr = tree.query(pts * m.scale, k=kk)
@@ -410,12 +443,17 @@ class DiagramRoadmapPlanner:
         a, b = uniq // len(pts), uniq % len(pts)
         weight = np.linalg.norm((pts[a] - pts[b]) * m.scale, axis=1)
         edge_of = {(int(x), int(y)): i for i, (x, y) in enumerate(zip(a, b))}
+        return a, b, weight, edge_of
+
+    def _lazy_search(self, pts, a, b, weight, edge_of, stats):
+        """Shortest path from node 0 to node 1 over edges not yet refused; trace along the
+        diagram and check the edges it uses, drop refused ones, repeat. An edge is dropped
+        only after it fails, so the answer (connected or not) is the one of the fully traced
+        roadmap. Returns ``(node sequence or None, traced polylines by edge, alive mask)``."""
+        m = self.model
         alive = np.ones(len(a), dtype=bool)
         polys = {}
         seq, it = None, 0
-        # Lazy search: shortest path over edges not yet refused, trace and check the ones it
-        # uses, drop refused ones, repeat. An edge is dropped only after it fails, so the
-        # answer (connected or not) is the one of the fully traced roadmap.
         while seq is None:
             it += 1
             e = np.flatnonzero(alive)
@@ -453,15 +491,13 @@ class DiagramRoadmapPlanner:
             if all(i in polys for i in eids):
                 seq = cand
         stats.update(candidate_edges=len(a), traced_edges=len(polys),
-                     refused_edges=int((~alive).sum()), search_iterations=it,
-                     edge_time_s=time.perf_counter() - t_e)
-        if seq is None:
-            return result('no_path', 'start and goal retractions are in different connected '
-                          f'components of the diagram roadmap ({len(pts)} diagram points from '
-                          f'{self.n_samples} Halton samples, k = {self.k}; '
-                          f'{int((~alive).sum())} of {len(a)} edges refused by tracing along '
-                          f'the diagram every {self.probe_step:g} or by the dense check); '
-                          'more samples may connect them')
+                     refused_edges=int((~alive).sum()), search_iterations=it)
+        return seq, polys, alive
+
+    def _assemble(self, pts, seq, polys, edge_of, ends, stats):
+        """The start's chain, the traced diagram pieces (shortcut along the diagram when
+        enabled), the goal's chain reversed; densely checked; its on-diagram share."""
+        m = self.model
         pieces = []
         for u, v in zip(seq[:-1], seq[1:]):
             poly = polys[edge_of[(min(u, v), max(u, v))]]
@@ -471,14 +507,13 @@ class DiagramRoadmapPlanner:
         stats['path_diagram_pieces'] = len(pieces)
         parts = [ends[0]] + [piece[1:] for piece in pieces] + [ends[1][::-1][1:]]
         way = np.vstack(parts)
-        tick('verify')
         ok, min_rho, bad = check_path6(m, way, self.check_step, self.check_dangle)
         if not ok:
             raise RuntimeError(f'assembled path failed dense checking at {bad[:5]}')
         path, _ = densify6(way, self.check_step, self.check_dangle)
         n_chain = (len(ends[0]), len(ends[1]))
         stats.update(self.path_on_diagram(path, way, n_chain))
-        return result('ok', path=path, waypoints=way, min_rho=min_rho)
+        return {'path': path, 'waypoints': way, 'min_rho': min_rho}
 
     def _shortcut(self, nodes, pieces, reach=6):
         """Shorten a roadmap path along the diagram: from each path node, trace edges to the
