@@ -55,11 +55,136 @@ def geom_span(robot):
     return robot.geometry.leg_max
 
 
+class ClimbMonitor:
+    """Ground-truth evaluation of a climb, called after every lock-step period (it reads the
+    simulator, never steers): centering error of the moving ring each time the planner
+    measures it, and every ``sample_every`` periods the ring and leg clearances, leg lengths,
+    the Jacobian condition and the ring paths for the figure."""
+
+    def __init__(self, sim, gait, trunk, robot, sample_every):
+        self.sim, self.gait, self.trunk, self.robot = sim, gait, trunk, robot
+        self.sample_every = sample_every
+        self.k = 0
+        self.measures = 0
+        self.centering = []
+        self.trace = {'t': [], 'ring1': [], 'ring2': [], 'steps': [], 'frames': [],
+                      'bore_radius': robot.ring_inner_radius}
+        self.stats = {'min_ring_clearance': math.inf, 'min_leg_clearance': math.inf,
+                      'min_leg_length': math.inf, 'max_leg_length': -math.inf,
+                      'max_condition': 0.0, 'both_clamps_open_samples': 0, 'samples': 0}
+
+    def __call__(self):
+        sim, stats = self.sim, self.stats
+        self.k += 1
+        if not (sim.clamp_closed[0] or sim.clamp_closed[1]):
+            stats['both_clamps_open_samples'] += 1
+        self._measured_steps()
+        if self.k % self.sample_every:
+            return
+        self._sample()
+
+    def _measured_steps(self):
+        """Centering error of the moving ring each time the planner measures it (the ring has
+        settled after the previous step): distance to the axis in the ring plane."""
+        log = self.gait.measure_log
+        for _, ring in log[self.measures:]:
+            pos, rot = self.sim.ring_poses()[ring]
+            if ev.ring_on_structure(self.trunk, pos):
+                self.centering.append(ev.centering_error(self.trunk, pos, rot))
+            self.trace['steps'].append(pos)
+            self.trace['frames'].append((ring, pos, rot))
+        self.measures = len(log)
+
+    def _sample(self):
+        sim, stats, trunk, robot = self.sim, self.stats, self.trunk, self.robot
+        poses = sim.ring_poses()
+        lengths = sim.leg_lengths()
+        stats['samples'] += 1
+        stats['min_leg_length'] = min(stats['min_leg_length'], float(lengths.min()))
+        stats['max_leg_length'] = max(stats['max_leg_length'], float(lengths.max()))
+        for ring, (pos, rot) in enumerate(poses):
+            stats['min_ring_clearance'] = min(stats['min_ring_clearance'],
+                                              ev.ring_clearance(trunk, robot, pos, rot))
+            self.trace[f'ring{ring + 1}'].append(pos)
+        stats['min_leg_clearance'] = min(stats['min_leg_clearance'],
+                                         ev.leg_clearance(trunk, robot, poses[0], poses[1]))
+        (p1, r1), (p2, r2) = poses
+        geom = robot.geometry
+        stats['max_condition'] = max(stats['max_condition'], float(gs.jacobian_condition(
+            geom, gs.jacobian(geom, r1.T @ (p2 - p1), r1.T @ r2))))
+        self.trace['t'].append(sim.sim_time)
+
+
+def _climb_launch_args(trunk_file, robot, robot_config, start_s, publish_period, physics_dt,
+                       start_length, noise, dropout, fault, seed, delta, cycles, mode,
+                       turn_deg):
+    """The arguments of ``climber.launch.xml`` for this run (start leg length: mid-stroke to
+    turn, else the shortest legs + 5 cm)."""
+    geom = robot.geometry
+    return {
+        'trunk': str(trunk_file), 'robot_config': robot_config, 'start_s': float(start_s),
+        'publish_period': float(publish_period), 'physics_dt': float(physics_dt),
+        'start_length': float(start_length or (
+            0.5 * (geom.leg_min + geom.leg_max) if mode == 'turn' else geom.leg_min + 0.05)),
+        'noise': float(noise), 'dropout': float(dropout), 'fault': float(fault),
+        'seed': int(seed), 'delta': float(delta), 'cycles': int(cycles), 'mode': mode,
+        'turn_deg': float(turn_deg)}
+
+
+def _climb_result(trunk_file, trunk, robot, sim, gait, monitor, outcome, start_poses, delta,
+                  cycles, mode, wall0):
+    """result.json of a climb: the planner's outcome and the ground-truth evaluation."""
+    geom = robot.geometry
+    stats, centering = monitor.stats, monitor.centering
+    poses = sim.ring_poses()
+    s_top = float(trunk.closest(poses[1][0])[0])
+    s_bottom = float(trunk.closest(poses[0][0])[0])
+    reached_top = bool(gait.state.value == 'done' and 'end of the structure' in gait.reason
+                       and s_top >= trunk.length - delta)
+    refused = gait.state.value == 'refused'
+    result = {
+        'trunk': str(trunk_file), 'trunk_name': trunk.name,
+        'trunk_length_m': trunk.length, 'delta_m': delta, 'cycles_requested': cycles,
+        'outcome': outcome, 'planner_state': gait.state.value,
+        'planner_message': gait.reason,
+        'refusal': gait.reason if refused else None,
+        'cycles': gait.cycle, 'semicycles': gait.semicycle, 'steps': len(gait.steps),
+        'reached_top': reached_top,
+        'height_reached_m': float(poses[1][0][2]),
+        'arc_length_reached_m': s_top, 'ring1_arc_length_m': s_bottom,
+        'centering_error_per_step_m': centering,
+        'centering_error_median_m': float(np.median(centering)) if centering else None,
+        'centering_error_max_m': float(np.max(centering)) if centering else None,
+        'min_ring_clearance_m': stats['min_ring_clearance'],
+        'min_leg_clearance_m': stats['min_leg_clearance'],
+        'ring_trunk_contacts': sim.contacts,
+        'leg_length_range_m': [stats['min_leg_length'], stats['max_leg_length']],
+        'stroke_m': [geom.leg_min, geom.leg_max],
+        'max_jacobian_condition': stats['max_condition'],
+        'planner_max_condition': gait.p.max_condition,
+        'clamp_invariant_ok': stats['both_clamps_open_samples'] == 0,
+        'ring_turn_deg': [turn_angle(a[1], b[1]) for a, b in zip(start_poses, poses)],
+        'interlock_trips': sim.interlock_trips,
+        'sim_time_s': sim.sim_time, 'wall_time_s': time.monotonic() - wall0,
+    }
+    within_stroke = (stats['min_leg_length'] >= geom.leg_min - 1e-4
+                     and stats['max_leg_length'] <= geom.leg_max + 1e-4)
+    result['within_stroke'] = bool(within_stroke)
+    goal = reached_top or (cycles and gait.cycle >= cycles and not refused) or (
+        mode == 'turn' and gait.state.value == 'done')
+    result['success'] = bool(goal and within_stroke and sim.contacts == 0
+                             and result['clamp_invariant_ok']
+                             and stats['max_condition'] < gs.DEFAULT_MAX_CONDITION)
+    return result
+
+
 def run_climb(trunk_file, bag_dir=None, delta=0.10, cycles=0, max_time=None, noise=0.001,
               dropout=0.0, fault=0.0, start_s=0.4, seed=1, robot_config='', publish_period=0.02,
               sample_every=5, domain_id=None, physics_dt=0.002, mode='climb',
               turn_deg=0.0, start_length=None):
-    """Run the climbing graph; returns (result dict, trace dict for plotting, trunk)."""
+    """Run the climbing graph of ``climber.launch.xml`` in one process, lock-step, until the
+    planner's gait is finished or ``max_time``; returns (result dict, trace dict for
+    plotting, trunk)."""
     from paramotion.graph import Graph
     from paramotion.launch import graph_from_launch
 
@@ -71,104 +196,22 @@ def run_climb(trunk_file, bag_dir=None, delta=0.10, cycles=0, max_time=None, noi
                         f'start on the structure (0 .. {trunk.length - geom_span(robot):.2f} m)')
     if max_time is None:
         max_time = 60.0 + 40.0 * trunk.length
-    geom = robot.geometry
     wall0 = time.monotonic()
-    trace = {'t': [], 'ring1': [], 'ring2': [], 'steps': [], 'frames': [],
-             'bore_radius': robot.ring_inner_radius}
-    stats = {'min_ring_clearance': math.inf, 'min_leg_clearance': math.inf,
-             'min_leg_length': math.inf, 'max_leg_length': -math.inf, 'max_condition': 0.0,
-             'both_clamps_open_samples': 0, 'samples': 0}
-    centering = []
     with Graph(domain_id=domain_id) as graph:
-        nodes, topics = graph_from_launch(graph, LAUNCH_FILE, {
-            'trunk': str(trunk_file), 'robot_config': robot_config, 'start_s': float(start_s),
-            'publish_period': float(publish_period), 'physics_dt': float(physics_dt),
-            'start_length': float(start_length or (
-                0.5 * (robot.geometry.leg_min + robot.geometry.leg_max)
-                if mode == 'turn' else robot.geometry.leg_min + 0.05)),
-            'noise': float(noise), 'dropout': float(dropout), 'fault': float(fault),
-            'seed': int(seed), 'delta': float(delta), 'cycles': int(cycles), 'mode': mode,
-            'turn_deg': float(turn_deg)})
+        nodes, topics = graph_from_launch(graph, LAUNCH_FILE, _climb_launch_args(
+            trunk_file, robot, robot_config, start_s, publish_period, physics_dt,
+            start_length, noise, dropout, fault, seed, delta, cycles, mode, turn_deg))
         sim, planner = nodes['climber_sim'], nodes['climber_planner']
         if bag_dir is not None:
             graph.record(bag_dir, topics)
         gait = planner.gait
         start_poses = sim.ring_poses()
-        counter = {'k': 0, 'measures': 0}
-
-        def on_step():
-            counter['k'] += 1
-            if not (sim.clamp_closed[0] or sim.clamp_closed[1]):
-                stats['both_clamps_open_samples'] += 1
-            # Centering error of the moving ring each time the planner measures it (the ring
-            # has settled after the previous step): distance to the axis in the ring plane.
-            if len(gait.measure_log) > counter['measures']:
-                for _, ring in gait.measure_log[counter['measures']:]:
-                    pos, rot = sim.ring_poses()[ring]
-                    if ev.ring_on_structure(trunk, pos):
-                        centering.append(ev.centering_error(trunk, pos, rot))
-                    trace['steps'].append(pos)
-                    trace['frames'].append((ring, pos, rot))
-                counter['measures'] = len(gait.measure_log)
-            if counter['k'] % sample_every:
-                return
-            poses = sim.ring_poses()
-            lengths = sim.leg_lengths()
-            stats['samples'] += 1
-            stats['min_leg_length'] = min(stats['min_leg_length'], float(lengths.min()))
-            stats['max_leg_length'] = max(stats['max_leg_length'], float(lengths.max()))
-            for ring, (pos, rot) in enumerate(poses):
-                stats['min_ring_clearance'] = min(stats['min_ring_clearance'],
-                                                  ev.ring_clearance(trunk, robot, pos, rot))
-                trace[f'ring{ring + 1}'].append(pos)
-            stats['min_leg_clearance'] = min(stats['min_leg_clearance'],
-                                             ev.leg_clearance(trunk, robot, poses[0], poses[1]))
-            (p1, r1), (p2, r2) = poses
-            stats['max_condition'] = max(stats['max_condition'], float(gs.jacobian_condition(
-                geom, gs.jacobian(geom, r1.T @ (p2 - p1), r1.T @ r2))))
-            trace['t'].append(sim.sim_time)
-
+        monitor = ClimbMonitor(sim, gait, trunk, robot, sample_every)
         outcome = graph.run_lockstep(sim, until=lambda: gait.finished, max_sim_time=max_time,
-                                     on_step=on_step)
-        poses = sim.ring_poses()
-        s_top = float(trunk.closest(poses[1][0])[0])
-        s_bottom = float(trunk.closest(poses[0][0])[0])
-        reached_top = bool(gait.state.value == 'done' and 'end of the structure' in gait.reason
-                           and s_top >= trunk.length - delta)
-        refused = gait.state.value == 'refused'
-        result = {
-            'trunk': str(trunk_file), 'trunk_name': trunk.name,
-            'trunk_length_m': trunk.length, 'delta_m': delta, 'cycles_requested': cycles,
-            'outcome': outcome, 'planner_state': gait.state.value,
-            'planner_message': gait.reason,
-            'refusal': gait.reason if refused else None,
-            'cycles': gait.cycle, 'semicycles': gait.semicycle, 'steps': len(gait.steps),
-            'reached_top': reached_top,
-            'height_reached_m': float(poses[1][0][2]),
-            'arc_length_reached_m': s_top, 'ring1_arc_length_m': s_bottom,
-            'centering_error_per_step_m': centering,
-            'centering_error_median_m': float(np.median(centering)) if centering else None,
-            'centering_error_max_m': float(np.max(centering)) if centering else None,
-            'min_ring_clearance_m': stats['min_ring_clearance'],
-            'min_leg_clearance_m': stats['min_leg_clearance'],
-            'ring_trunk_contacts': sim.contacts,
-            'leg_length_range_m': [stats['min_leg_length'], stats['max_leg_length']],
-            'stroke_m': [geom.leg_min, geom.leg_max],
-            'max_jacobian_condition': stats['max_condition'],
-            'planner_max_condition': gait.p.max_condition,
-            'clamp_invariant_ok': stats['both_clamps_open_samples'] == 0,
-            'ring_turn_deg': [turn_angle(a[1], b[1]) for a, b in zip(start_poses, poses)],
-            'interlock_trips': sim.interlock_trips,
-            'sim_time_s': sim.sim_time, 'wall_time_s': time.monotonic() - wall0,
-        }
-        within_stroke = (stats['min_leg_length'] >= geom.leg_min - 1e-4
-                         and stats['max_leg_length'] <= geom.leg_max + 1e-4)
-        result['within_stroke'] = bool(within_stroke)
-        goal = reached_top or (cycles and gait.cycle >= cycles and not refused) or (
-            mode == 'turn' and gait.state.value == 'done')
-        result['success'] = bool(goal and within_stroke and sim.contacts == 0
-                                 and result['clamp_invariant_ok']
-                                 and stats['max_condition'] < gs.DEFAULT_MAX_CONDITION)
+                                     on_step=monitor)
+        result = _climb_result(trunk_file, trunk, robot, sim, gait, monitor, outcome,
+                               start_poses, delta, cycles, mode, wall0)
+        trace = monitor.trace
         trace['planned'] = [s.position for s in gait.steps]
     return result, trace, trunk
 
