@@ -232,9 +232,12 @@ def run_node(node_cls, args=None):
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except RCLError:
-        # Ctrl-C shut the context down while a callback was publishing: a clean stop, not a
-        # crash. Any other RCL error (context still valid) is real and re-raised.
+    except (RCLError, RuntimeError):
+        # Ctrl-C shut the context down while the executor was inside rcl: a callback
+        # publishing (RCLError), or a subscription's take_message, whose handle the shutdown
+        # invalidated (pybind11 then raises a plain RuntimeError, "Unable to convert call
+        # argument '0' to Python object"). A clean stop, not a crash. The same errors with the
+        # context still valid are real and re-raised.
         if rclpy.ok():
             raise
     except UserError as exc:  # bad parameter, bad input file named by a parameter

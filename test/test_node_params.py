@@ -113,3 +113,43 @@ def test_clock_source_start_condition_entries_validated():
             graph.add(SmokeSimNode, wait_for_matched=['/smoke/ground_truth'])
         sim = graph.add(SmokeSimNode, wait_for_matched=['/smoke/ground_truth:2'])
         assert sim.params.wait_for_matched == ['/smoke/ground_truth:2']
+
+
+_RUN_NODE_SCRIPT = '''
+import sys
+import rclpy
+from paramotion.node import ParamotionNode, run_node
+
+
+class Racer(ParamotionNode):
+    """Raises what rclpy raises when Ctrl-C invalidates a subscription mid-take."""
+
+    def __init__(self):
+        super().__init__('racer', parameter_overrides=[])
+        self.create_timer(0.01, self.tick)
+
+    def tick(self):
+        if sys.argv[1] == 'after_shutdown':
+            rclpy.shutdown()
+        raise RuntimeError("Unable to convert call argument '0' to Python object")
+
+
+run_node(Racer, ['--ros-args', '-p', 'use_sim_time:=false'])
+print('clean stop')
+'''
+
+
+@pytest.mark.parametrize('case', ['after_shutdown', 'context_valid'])
+def test_run_node_stops_cleanly_when_shutdown_races_a_take(case):
+    """A node process stopped by Ctrl-C while its executor was taking a message exits 0: the
+    shutdown invalidated the subscription and rclpy raised a RuntimeError from inside rcl
+    (seen in the demo's sonar process). The same error with the context still valid is a
+    real crash: traceback, non-zero exit."""
+    import subprocess
+    import sys
+    proc = subprocess.run([sys.executable, '-c', _RUN_NODE_SCRIPT, case], capture_output=True,
+                          text=True, timeout=60)
+    if case == 'after_shutdown':
+        assert proc.returncode == 0 and 'clean stop' in proc.stdout, proc.stderr
+    else:
+        assert proc.returncode != 0 and 'Unable to convert' in proc.stderr, proc.stdout
