@@ -171,9 +171,120 @@ def _dump(doc):
     return text[:-2] + ',\n "path": [\n  ' + points + '\n ]\n}\n'
 
 
+def _pose_arg(values, default):
+    if values is None:
+        return np.asarray(default, dtype=float)
+    v = np.asarray(values, dtype=float)
+    return np.r_[v[:3], np.radians(v[3:])]
+
+
+def _json_value(v):
+    if isinstance(v, (np.integer,)):
+        return int(v)
+    if isinstance(v, (np.floating, float)):
+        return None if math.isnan(v) else float(v)
+    return v
+
+
 def _plan321(args):
-    from paramotion.voronoi.spatial321 import run_cli
-    return run_cli(args, _check_out(args.out))
+    """Plan between two poses and write ``out/result.json`` and ``out/figure321.png``."""
+    from tqdm import tqdm
+
+    from paramotion.voronoi.figures import figure321
+    from paramotion.voronoi.spatial321 import (
+        DEMO_GOAL,
+        DEMO_LEG_LIMITS,
+        DEMO_START,
+        Spatial321Model,
+        check_path6,
+        demo_model,
+        load_scene,
+        validate_pose,
+    )
+    from paramotion.voronoi.spatial321_roadmap import DiagramRoadmapPlanner
+
+    if args.no_leg_limits and (args.leg_min is not None or args.leg_max is not None):
+        raise UserError('--no-leg-limits cannot be combined with --leg-min/--leg-max')
+    limits = None
+    if args.leg_min is not None or args.leg_max is not None:
+        if args.leg_min is None or args.leg_max is None:
+            raise UserError('--leg-min and --leg-max go together')
+        limits = (args.leg_min, args.leg_max)
+        if not (0 <= args.leg_min < args.leg_max and math.isfinite(args.leg_max)):
+            raise UserError(f'--leg-min {args.leg_min} --leg-max {args.leg_max}: need '
+                            '0 <= min < max (m)')
+    if args.scene:
+        model = load_scene(args.scene, leg_limits=limits)
+        if args.no_leg_limits:
+            model = Spatial321Model(model.base, model.platform, model.boxes,
+                                    model.position_min, model.position_max, model.angle_max)
+    else:
+        model = demo_model(leg_limits=None if args.no_leg_limits
+                           else (limits or DEMO_LEG_LIMITS))
+    start = _pose_arg(args.start, DEMO_START)
+    goal = _pose_arg(args.goal, DEMO_GOAL)
+    validate_pose(model, start, 'start')
+    validate_pose(model, goal, 'goal')
+    if args.samples < 10:
+        raise UserError(f'--samples {args.samples}: need at least 10')
+    if args.neighbours < 2:
+        raise UserError(f'--neighbours {args.neighbours}: need at least 2')
+    planner = DiagramRoadmapPlanner(model, n_samples=args.samples, k=args.neighbours,
+                                    seed=args.seed, probe_step=args.probe_step,
+                                    max_gap=args.max_gap)
+    stages = ('sample', 'retract', 'search', 'verify')
+    bar = tqdm(total=len(stages), desc='voronoi plan321', unit='stage', leave=False)
+
+    def progress(stage):
+        bar.set_postfix_str(stage)
+        bar.update(1)
+
+    res = planner.plan(start, goal, progress)
+    bar.close()
+    if args.repeats < 1:
+        raise UserError(f'--repeats {args.repeats}: need at least 1')
+    runs = [res] + [planner.plan(start, goal) for _ in range(args.repeats - 1)]
+    if args.repeats > 1:
+        times = [r.planning_time for r in runs]
+        cpu = [r.stats['cpu_time_s'] for r in runs]
+        print(f'planning time over {len(times)} runs: median {statistics.median(times):.2f} s '
+              f'wall (min {min(times):.2f}, max {max(times):.2f}), median '
+              f'{statistics.median(cpu):.2f} s CPU')
+    straight_ok = check_path6(model, np.vstack([start, goal]))[0]
+    out = _check_out(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    doc = {
+        'status': res.status, 'reason': res.reason,
+        'start': start.tolist(), 'goal': goal.tolist(),
+        'pose_note': '[x, y, z] of P7 in m, [roll, pitch, yaw] ZYX in rad',
+        'leg_length_limits_m': None if model.leg_limits is None else list(model.leg_limits),
+        'straight_line_free': bool(straight_ok),
+        'min_rho': None if math.isnan(res.min_rho) else res.min_rho,
+        'planning_time_s': res.planning_time,
+        'resolution': {
+            'samples': planner.n_samples, 'sampler': f'scrambled Halton, seed {planner.seed}',
+            'neighbours': planner.k, 'probe_step': planner.probe_step,
+            'max_gap': planner.max_gap, 'tie_tol': planner.tie_tol,
+            'diagram_tol': planner.diagram_tol, 'check_step_m': planner.check_step,
+            'check_dangle_rad': planner.check_dangle,
+            'metric_note': 'scaled metric: m for positions, angle_scale = '
+                           f'{model.angle_scale} m per rad for angles',
+            'no_path_means': 'start and goal retractions in different connected components '
+                             'of the diagram roadmap at this resolution (or different '
+                             'singularity cells, a certificate)'},
+        'stats': {k: _json_value(v) for k, v in res.stats.items()},
+        'waypoints': np.round(res.waypoints, 9).tolist(),
+        'path': np.round(res.path, 9).tolist(),
+    }
+    (out / 'result.json').write_text(json.dumps(doc) + '\n')
+    figure321(model, out / 'figure321.png', res.path if res.found else None, start, goal)
+    if res.found:
+        print(f'path found: {len(res.path)} poses, min rho {res.min_rho:.4g}, on the diagram '
+              f'{res.stats["on_diagram_fraction"]:.0%} of its length, planning time '
+              f'{res.planning_time:.2f} s (straight line free: {straight_ok}) -> {out}')
+        return 0
+    print(f'no path: {res.reason} -> {out}')
+    return 1
 
 
 def _bench(args):

@@ -197,3 +197,42 @@ def figure3(model, path_file, path=None, phi_range=(-math.pi / 2, math.pi / 2), 
     fig.savefig(path_file, dpi=90)
     plt.close(fig)
     return [float(sweep[i]) for i in chosen]
+
+
+def figure321(model, path_file, path, start, goal):
+    """3-D view of the platform at start, along the path and at the goal, and the boxes."""
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+    from paramotion.voronoi.spatial321 import LEGS
+    fig = plt.figure(figsize=(9, 8))
+    ax = fig.add_subplot(projection='3d')
+    for verts, quads, _ in model.meshes:
+        ax.add_collection3d(Poly3DCollection(verts[quads], facecolor='tab:gray', alpha=0.35,
+                                             edgecolor='k', linewidth=0.3))
+
+    def draw(q, color, alpha, lw):
+        p = model.world_points(q)
+        for a, b in LEGS:
+            ax.plot(*np.stack([p[a], p[b]]).T, color=color, alpha=alpha, linewidth=lw)
+        tri = np.stack([p[7], p[8], p[9], p[7]])
+        ax.plot(*tri.T, color=color, alpha=alpha, linewidth=lw + 1)
+
+    poses = [start, goal]
+    if path is not None and len(path):
+        idx = np.linspace(0, len(path) - 1, 8).astype(int)[1:-1]
+        for q in path[idx]:
+            draw(q, 'tab:orange', 0.35, 0.8)
+        ax.plot(*path[:, :3].T, color='red', linewidth=2, label='P7 path')
+    draw(poses[0], 'black', 1.0, 1.5)
+    draw(poses[1], 'tab:blue', 1.0, 1.5)
+    base = np.array([model.fixed[k] for k in range(1, 7)])
+    ax.scatter(*base.T, color='k', s=15)
+    ax.set_xlabel('x (m)')
+    ax.set_ylabel('y (m)')
+    ax.set_zlabel('z (m)')
+    ax.set_title('3-2-1 platform: start (black), goal (blue), intermediate poses (orange)')
+    ax.set_box_aspect((1, 1, 0.9))
+    if path is not None and len(path):
+        ax.legend()
+    fig.savefig(path_file, dpi=90)
+    plt.close(fig)
