@@ -192,8 +192,32 @@ def load_config(path=None, overrides=None):
 
 
 def validate(raw, source='config'):
-    """Check every field, then reachability and stroke; build the model objects."""
+    """Check every field, then reachability and stroke; build the model objects.
+
+    One step per section of the file, in the order a reader meets them: the field and its
+    anchor points, the trolley, the cables, the orienting chain and the Gough-Stewart
+    isolator, the focal surface and track, the wind, the tracker and controllers, then the
+    hanging mass and the reachability of every target within the leg stroke.
+    """
     r = _Reader(raw, source)
+    size, points = _field_points(r)
+    tsize = _check_trolley(r)
+    system, cables, t_min, t_max = _cables(r, points, tsize)
+    hinge, upper_offset, ring_mass, angle_max = _orienting(r)
+    geometry, leg_min, leg_max, env_p, env_r = _gough_stewart(r, raw)
+    chain = FeedSupportChain(hinge, upper_offset, float(raw['gough_stewart']['nominal_height']))
+    surface, track = _focal_track(r)
+    _check_wind(r)
+    _check_tracker_and_controllers(r, raw, leg_min, leg_max)
+    suspended, com_below = _hanging_mass(raw, ring_mass, chain.upper_offset)
+    cfg = FastConfig(raw, source, system, cables, geometry, surface, track, chain, suspended,
+                     com_below)
+    _check_reachability(cfg, r, size, angle_max, t_min, t_max, env_p, env_r)
+    return cfg
+
+
+def _field_points(r):
+    """Field box and the named tower/ground anchor points (all inside the field)."""
     size = r.vec('field.size')
     if np.any(size <= 0):
         r.fail('field.size', f'= {size.tolist()} must be positive')
@@ -212,14 +236,22 @@ def validate(raw, source='config'):
             p = r.vec(f'{group}.{name}', value=v)
             inside(f'{group}.{name}', p)
             points[name] = p
+    return size, points
 
+
+def _check_trolley(r):
+    """Trolley mass, wind area, drag, size and centre of pressure; returns the size."""
     for key in ('trolley.mass', 'trolley.wind_area', 'trolley.drag_coefficient'):
         r.num(key, 0.0, lo_open=True)
     tsize = r.vec('trolley.size')
     if np.any(tsize <= 0):
         r.fail('trolley.size', f'= {tsize.tolist()} must be positive')
     r.vec('trolley.centre_of_pressure')
+    return tsize
 
+
+def _cables(r, points, tsize):
+    """Cable material, tension limits and the cable list: ``(system, cables, t_min, t_max)``."""
     EA = r.num('cables.EA', 0.0, lo_open=True)
     damping = r.num('cables.damping', 0.0)
     t_min = r.num('cables.tension_min', 0.0, lo_open=True)
@@ -259,8 +291,12 @@ def validate(raw, source='config'):
             r.fail(f'{key}.attach', f'= {attach.tolist()} lies outside the trolley box '
                    f'{tsize.tolist()}')
         cables.append(Cable(name, kind, np.array([points[a] for a in anchors]), attach))
-    system = CableSystem(cables, EA, damping)
+    return CableSystem(cables, EA, damping), cables, t_min, t_max
 
+
+def _orienting(r):
+    """Hinges between trolley and upper platform and the servo gains:
+    ``(hinge offset, upper offset, ring mass, angle_max)``."""
     hinge = r.vec('orienting.hinge_offset')
     upper_offset = r.num('orienting.upper_offset', 0.0)
     ring_mass = r.num('orienting.ring_mass', 0.0, lo_open=True)
@@ -269,7 +305,11 @@ def validate(raw, source='config'):
     for key in ('orienting.servo_position_gain', 'gough_stewart.servo_position_gain',
                 'orienting.servo_velocity_gain', 'gough_stewart.servo_velocity_gain'):
         r.num(key, 0.0, 1.0, lo_open=True)
+    return hinge, upper_offset, ring_mass, angle_max
 
+
+def _gough_stewart(r, raw):
+    """The isolator: ``(geometry, leg_min, leg_max, envelope position, envelope rotation)``."""
     gs = 'gough_stewart'
     for key in ('base_radius', 'platform_radius', 'nominal_height', 'upper_mass', 'feed_mass',
                 'leg_mass', 'drive_force_max'):
@@ -286,8 +326,11 @@ def validate(raw, source='config'):
     geometry = GoughStewartGeometry.from_rings(
         g['base_radius'], g['platform_radius'], math.radians(g['base_half_angle_deg']),
         math.radians(g['platform_half_angle_deg']), leg_min, leg_max)
-    chain = FeedSupportChain(hinge, upper_offset, float(g['nominal_height']))
+    return geometry, leg_min, leg_max, env_p, env_r
 
+
+def _focal_track(r):
+    """Focal surface and the feed's track on it (the target must be on the reachable cap)."""
     centre = r.vec('focal_surface.centre')
     radius = r.num('focal_surface.radius', 0.0, lo_open=True)
     zmax = math.radians(r.num('focal_surface.zenith_max_deg', 0.0, 60.0))
@@ -299,7 +342,11 @@ def validate(raw, source='config'):
                f'focal_surface.zenith_max_deg = {math.degrees(zmax):g} (unreachable target)')
     track = Track(surface, kind, zen, math.radians(r.num('track.azimuth_deg')),
                   r.num('track.speed', 0.0))
+    return surface, track
 
+
+def _check_wind(r):
+    """Wind model: mean, turbulence spectrum, gusts, seed."""
     r.num('wind.mean_speed', 0.0)
     r.num('wind.direction_deg')
     r.num('wind.turbulence_intensity', 0.0, 2.0)
@@ -313,6 +360,9 @@ def validate(raw, source='config'):
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         r.fail('wind.seed', f'= {seed!r} must be a non-negative integer')
 
+
+def _check_tracker_and_controllers(r, raw, leg_min, leg_max):
+    """Tracker, cable controller, isolation controller and simulator settings."""
     r.num('tracker.noise_position', 0.0, 1.0)
     r.num('tracker.noise_orientation_deg', 0.0, 10.0)
     r.num('tracker.rate', 0.0, 2000.0, lo_open=True)
@@ -345,6 +395,11 @@ def validate(raw, source='config'):
     r.num('sim.physics_dt', 1e-5, 0.01)
     r.num('sim.solver_iterations', 1, 1000)
 
+
+def _hanging_mass(raw, ring_mass, upper_offset):
+    """Mass hanging from the trolley and its centre of mass below the trolley's:
+    ``(suspended mass, com_below)``."""
+    g = raw['gough_stewart']
     upper_mass = float(g['upper_mass'])
     legs_mass = 6 * float(g['leg_mass'])
     feed_mass = float(g['feed_mass'])
@@ -354,12 +409,7 @@ def validate(raw, source='config'):
            + (upper_offset + g['nominal_height'] / 2) * legs_mass
            + (upper_offset + g['nominal_height']) * feed_mass) / hanging
     suspended = float(raw['trolley']['mass']) + hanging
-    com_below = hanging * com / suspended
-
-    cfg = FastConfig(raw, source, system, cables, geometry, surface, track, chain, suspended,
-                     com_below)
-    _check_reachability(cfg, r, size, angle_max, t_min, t_max, env_p, env_r)
-    return cfg
+    return suspended, hanging * com / suspended
 
 
 def _check_reachability(cfg, r, size, angle_max, t_min, t_max, env_p, env_r):
