@@ -57,23 +57,39 @@ class FeedSupportPlant:
         self.geom = cfg.geometry
         self.chain = cfg.chain
         self.cables = cfg.cables
-        gs = raw['gough_stewart']
-        orient = raw['orienting']
-        cab = raw['cables']
-        self.winch_speed = cab['winch_speed_max']
-        self.t_max = cab['tension_max']
+        self.winch_speed = raw['cables']['winch_speed_max']
+        self.t_max = raw['cables']['tension_max']
+        feed_p, feed_R, trolley_p, alpha, beta, lengths = self._start_at_track(start_time)
+        # PyBullet model, in this order (body and shape ids, hence results, depend on it).
+        self._build_towers(raw)
+        self._build_bodies(raw, trolley_p, feed_p, feed_R)
+        self._pose_chain(alpha, beta)
+        self._close_legs()
+        self._init_drives(raw, start_time, lengths, bullet._client)
+        # Settle the closed chain (constraints at rest) before time starts.
+        self.apply_commands(0.0)
+        for _ in range(5):
+            b.stepSimulation()
 
-        # Start at the first track target, cables at their planned tensions.
-        feed_p, feed_R = cfg.track.pose(start_time)
-        trolley_p, (alpha, beta), upper_p, upper_R = self.chain.coarse_targets(feed_p, feed_R)
-        t_plan = cfg.tension_targets(trolley_p, feed_R)
+    def _start_at_track(self, start_time):
+        """Start at the first track target, cables at their planned tensions: sets the winch
+        state and returns ``(feed_p, feed_R, trolley_p, alpha, beta, cable lengths)``."""
+        feed_p, feed_R = self.cfg.track.pose(start_time)
+        trolley_p, (alpha, beta), _, _ = self.chain.coarse_targets(feed_p, feed_R)
+        t_plan = self.cfg.tension_targets(trolley_p, feed_R)
         lengths = self.cables.lengths(trolley_p, np.eye(3))
         self.unstretched = self.cables.unstretched_for(lengths, t_plan)
         self.winch_cmd = self.unstretched.copy()
         self.winch_rate_cmd = np.zeros(self.cables.n)
         self.winch_cmd_time = start_time
+        return feed_p, feed_R, trolley_p, alpha, beta, lengths
 
-        self._build_towers(raw)
+    def _build_bodies(self, raw, trolley_p, feed_p, feed_R):
+        """The trolley multibody (base) with the orienting ring, the upper platform and six
+        two-body prismatic legs as links, and the feed platform as a free body. Legs start at
+        their nominal lengths (``self.nominal_lengths``); nothing collides."""
+        b = self.b
+        gs = raw['gough_stewart']
         up_off = self.chain.upper_offset
         hinge = np.asarray(self.chain.hinge_offset, float)
         tsize = np.asarray(raw['trolley']['size'], float)
@@ -92,7 +108,7 @@ class FeedSupportPlant:
         masses, shapes, positions, orients, inertial_pos = [], [], [], [], []
         parents, jtypes, axes = [], [], []
         # link 0: ring on hinge about trolley x
-        masses.append(orient['ring_mass'])
+        masses.append(raw['orienting']['ring_mass'])
         shapes.append(ring_shape)
         positions.append(list(hinge))
         orients.append(_EYE_Q)
@@ -149,7 +165,10 @@ class FeedSupportPlant:
             for link in range(-1, b.getNumJoints(body)):
                 b.setCollisionFilterGroupMask(body, link, 0, 0)
                 b.changeDynamics(body, link, linearDamping=0.0, angularDamping=0.0)
-        # Pose the chain at the start target.
+
+    def _pose_chain(self, alpha, beta):
+        """Hinges at the start target; the legs' spherical joints free (motors off)."""
+        b = self.b
         b.resetJointState(self.body, self.RING, alpha)
         b.resetJointState(self.body, self.UPPER, beta)
         self.hinge_cmd = np.array([alpha, beta])
@@ -158,6 +177,11 @@ class FeedSupportPlant:
             b.setJointMotorControlMultiDof(self.body, self.CYL[i], b.POSITION_CONTROL,
                                            targetPosition=_EYE_Q, positionGain=0.0,
                                            velocityGain=0.0, force=[0.0, 0.0, 0.0])
+
+    def _close_legs(self):
+        """Close the six loops: each rod tip to its feed anchor, a stiffened point-to-point
+        constraint (``maxForce=1e7, erp=0.9``; PyBullet's defaults leave 20-50 mm of play)."""
+        b = self.b
         self.constraints = []
         for i in range(6):
             # Constraint pivots are given relative to the link's centre of mass: the rod tip
@@ -167,6 +191,11 @@ class FeedSupportPlant:
                                    list(self.geom.platform_anchors[i]))
             b.changeConstraint(c, maxForce=1e7, erp=0.9)
             self.constraints.append(c)
+
+    def _init_drives(self, raw, start_time, lengths, client_id):
+        """Leg and hinge servo set-points and gains, and the state the step reports."""
+        gs = raw['gough_stewart']
+        orient = raw['orienting']
         self.leg_cmd = self.nominal_lengths.copy()
         self.leg_rate_cmd = np.zeros(6)
         self.leg_cmd_time = start_time
@@ -174,7 +203,7 @@ class FeedSupportPlant:
                             orient['torque_max'])
         self.leg_gains = (gs['servo_position_gain'], gs['servo_velocity_gain'],
                           gs['drive_force_max'])
-        self._cid = bullet._client
+        self._cid = client_id
         self._leg_kp = [float(self.leg_gains[0])] * 6
         self._leg_kv = [float(self.leg_gains[1])] * 6
         self._leg_fmax = [float(self.leg_gains[2])] * 6
@@ -185,10 +214,6 @@ class FeedSupportPlant:
         self.winch_rates = np.zeros(self.cables.n)
         self.wind_force = np.zeros(3)
         self.wind_torque = np.zeros(3)
-        # Settle the closed chain (constraints at rest) before time starts.
-        self.apply_commands(0.0)
-        for _ in range(5):
-            b.stepSimulation()
 
     def _build_towers(self, raw):
         b = self.b
