@@ -107,11 +107,14 @@ def test_sonar_killed_planner_stops_and_says_why_then_resumes_on_respawn(tmp_pat
             entry = entry or (statuses[-1] if statuses else None)
             return next((kv.value for kv in entry[1].values if kv.key == 'state_now'),
                         None) if entry else None
-        # Covering first (moving, past warm-up).
+        # Covering first (moving, past warm-up), and this watcher hears the sonar itself (its
+        # sweeps' stamps time the stop; on the small demo world 1 % of CVS can be covered
+        # before DDS discovery has matched the watcher with the sonar process).
         assert w.spin_until(lambda: fractions and fractions[-1][1] > 0.01 and cmds
-                            and cmds[-1][1] > 0.0 and state() not in (
+                            and cmds[-1][1] > 0.0 and len(scans) >= 5 and state() not in (
                                 None, 'warmup', 'waiting_for_sonar'), 90), \
-            ([(t, state(e)) for t, e in ((e[0], e) for e in statuses)], log.text()[-3000:])
+            (len(scans), [(t, state(e)) for t, e in ((e[0], e) for e in statuses)],
+             log.text()[-3000:])
         sonar = proc(launcher, 'coverage_sonar')
         n_status = len(statuses)
         kill(sonar)
