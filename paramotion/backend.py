@@ -11,6 +11,14 @@ import os
 BACKENDS = ('auto', 'numba', 'numpy')
 
 
+def usable_cores():
+    """Cores this process may run on (its CPU affinity mask, not the machine's count), >= 1."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not Linux
+        return max(1, os.cpu_count() or 1)
+
+
 def resolve_backend(backend='auto'):
     """``'numba'`` or ``'numpy'``: the compiled kernels when asked for and importable."""
     if backend not in BACKENDS:

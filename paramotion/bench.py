@@ -97,11 +97,8 @@ BENCHES = {
 
 def cores():
     """Logical cores of the machine and those this process may run on."""
-    try:
-        usable = len(os.sched_getaffinity(0))
-    except AttributeError:
-        usable = os.cpu_count()
-    return {'cpu_count': os.cpu_count(), 'usable_cores': usable}
+    from paramotion.backend import usable_cores
+    return {'cpu_count': os.cpu_count(), 'usable_cores': usable_cores()}
 
 
 def run_benchmarks(names, quick=False, world=None, log=print):

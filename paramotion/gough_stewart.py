@@ -34,7 +34,7 @@ import numpy as np
 from scipy.linalg.lapack import dgesdd as _dgesdd
 from scipy.linalg.lapack import dgesv as _dgesv
 
-from paramotion.backend import BACKENDS, resolve_backend  # noqa: F401 (re-exported)
+from paramotion.backend import BACKENDS, resolve_backend, usable_cores  # noqa: F401 (re-exported)
 
 __all__ = [
     'DEFAULT_MAX_CONDITION', 'BatchFKResult', 'FKResult', 'GoughStewartGeometry',
@@ -730,14 +730,6 @@ def forward_kinematics_batch(geom, lengths, guess_positions, guess_rotations, to
 #: Smallest block of poses worth a thread of its own (a thread start costs ~50 us, about 25
 #: solves); a multiple of the kernel's condition lanes.
 _MIN_BLOCK = 2048
-
-
-def usable_cores():
-    """Cores this process may run on (its CPU affinity), at least 1."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # pragma: no cover - not Linux
-        return max(1, os.cpu_count() or 1)
 
 
 def _forward_kinematics_batch_numba(geom, c, r, e, valid, tol, max_iter, max_condition,

@@ -14,15 +14,13 @@ what the serial run (``--serial``) writes. See docs/sweeps.md for a multi-machin
 """
 import os
 
+from paramotion.backend import usable_cores
 from paramotion.errors import UserError
 
 
 def default_workers():
     """Cores this process may use (the affinity mask, not the machine's count)."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not Linux
-        return os.cpu_count() or 1
+    return usable_cores()
 
 
 def add_dask_args(parser):

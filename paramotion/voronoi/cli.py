@@ -203,6 +203,7 @@ def _plan321(args):
     )
     from paramotion.voronoi.spatial321_roadmap import DiagramRoadmapPlanner
 
+    out = _check_out(args.out)
     if args.no_leg_limits and (args.leg_min is not None or args.leg_max is not None):
         raise UserError('--no-leg-limits cannot be combined with --leg-min/--leg-max')
     limits = None
@@ -251,7 +252,6 @@ def _plan321(args):
               f'wall (min {min(times):.2f}, max {max(times):.2f}), median '
               f'{statistics.median(cpu):.2f} s CPU')
     straight_ok = check_path6(model, np.vstack([start, goal]))[0]
-    out = _check_out(args.out)
     out.mkdir(parents=True, exist_ok=True)
     doc = {
         'status': res.status, 'reason': res.reason,
