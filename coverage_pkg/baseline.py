@@ -25,6 +25,8 @@ def robot_size_config(radius=0.25, overlap=0.2, **overrides):
         lap_spacing=2.0 * radius * (1.0 - overlap),
         trace_tolerance=0.2 * radius,
         lap_tolerance=0.3 * radius,
+        # A pocket of 0.2 m^2 is a speckle to a 2 m detector but a whole footprint to this one.
+        min_unseen_area=0.0,
     )
     values.update(overrides)
     return PlannerConfig(**values)

@@ -159,11 +159,16 @@ class CoverageAccumulator:
     def add_pose(self, x, y, min_step=None):
         """Add the visible detector disk at (x, y); skipped if closer than ``min_step`` to the
         last pose added."""
-        cvs = self.cvs
         if min_step is not None and self._last is not None:
             if math.hypot(x - self._last[0], y - self._last[1]) < min_step:
                 return
         self._last = (x, y)
+        rows, cols = self.visible(x, y)
+        self.seen[rows, cols] = True
+
+    def visible(self, x, y):
+        """Rows and columns of the cells of B^V_delta((x, y)): within delta, line of sight."""
+        cvs = self.cvs
         ang = np.linspace(-math.pi, math.pi, self.n_rays, endpoint=False)
         reach = raycast_segments(cvs.world.segments, (x, y), ang, cvs.delta + cvs.res)
         r0, c0 = cvs.cell_of((x, y))
@@ -177,7 +182,7 @@ class CoverageAccumulator:
         b = np.floor((np.arctan2(dy, dx) + math.pi) / (2 * math.pi) * self.n_rays).astype(int)
         b = np.clip(b, 0, self.n_rays - 1)
         vis = ok & (rho <= cvs.delta) & (rho <= reach[b])
-        self.seen[rows[vis], cols[vis]] = True
+        return rows[vis], cols[vis]
 
     def fraction(self):
         """Covered fraction of CVS."""

@@ -50,6 +50,28 @@ def ring_minima(ranges, angles, min_separation=math.radians(30.0)):
     return kept
 
 
+def cusp_from_ring(xy, ranges, angles, delta, min_angle=math.radians(30.0), max_shift=0.5):
+    """The cusp point near ``xy`` from one ring sweep: the point where the two closest
+    obstacles are both at ``delta`` (on the GVD, D = delta), with the obstacles locally flat.
+
+    With the closest echoes d1, d2 along unit bearings n1, n2, moving by s changes them by
+    -n_i . s, so s solves n1 . s = d1 - delta, n2 . s = d2 - delta. Returns None where that is
+    ill-posed (bearings within ``min_angle`` of parallel or opposite) or the shift exceeds
+    ``max_shift`` (then the two echoes are not the two sides of one cusp)."""
+    mins = ring_minima(ranges, angles)
+    if len(mins) < 2:
+        return None
+    (d1, a1), (d2, a2) = mins[:2]
+    sep = abs(math.remainder(a1 - a2, 2 * math.pi))
+    if sep < min_angle or sep > math.pi - min_angle:
+        return None
+    n = np.array([[math.cos(a1), math.sin(a1)], [math.cos(a2), math.sin(a2)]])
+    s = np.linalg.solve(n, np.array([d1 - delta, d2 - delta]))
+    if not np.all(np.isfinite(s)) or float(np.hypot(*s)) > max_shift:
+        return None
+    return (float(xy[0] + s[0]), float(xy[1] + s[1]))
+
+
 def gvd_order(ranges, angles, tol, min_separation=math.radians(30.0)):
     """How many obstacles are equidistant (within ``tol``) and closest: the GVD order.
 

@@ -82,11 +82,12 @@ def run_kinematic(world, config=None, ring=None, dt=0.05, sweep_period=0.1, max_
             'accumulator': acc, 'update_times': update_times}
 
 
-def ratio_report(paths, config=None, baseline=False, max_time=3000.0, out=print):
+def ratio_report(paths, config=None, baseline=False, oracle=False, max_time=3000.0, out=print):
     """Cover every world file in ``paths`` in the ROS-free loop and print, per world, the
     covered fraction of CVS, the path, the lower bound |CVS|/(2 delta) and their ratio (and,
-    with ``baseline``, the robot-size baseline's path and the extended/baseline ratio); then
-    the mean and median ratio. Returns the rows."""
+    with ``baseline``, the robot-size baseline's path and the extended/baseline ratio; with
+    ``oracle``, the full-knowledge route of :mod:`coverage_pkg.oracle` and planner/oracle);
+    then the mean and median ratio. Returns the rows."""
     from coverage_pkg.baseline import robot_size_config
     from coverage_pkg.world import load_world
     rows = []
@@ -106,10 +107,23 @@ def ratio_report(paths, config=None, baseline=False, max_time=3000.0, out=print)
             line += (f"; robot-size baseline {b['state']}, covered "
                      f"{100 * b['covered_fraction']:.2f} %, path {b['path_length']:.1f} m, "
                      f"extended/baseline {r['path_length'] / b['path_length']:.2f}")
+        if oracle:
+            from coverage_pkg.oracle import oracle_route
+            cfg = config or PlannerConfig()
+            o = oracle_route(world, cfg.radius, cfg.detector_range())
+            row.update(oracle_m=o['path_length'], oracle_covered=o['covered_fraction'])
+            line += (f"; oracle {o['path_length']:.1f} m ({100 * o['covered_fraction']:.2f} %), "
+                     f"ratio {o['path_length'] / r['lower_bound']:.2f}, planner/oracle "
+                     f"{r['path_length'] / o['path_length']:.2f}")
         out(line)
         rows.append(row)
     if rows:
         ratios = [r['ratio'] for r in rows]
         out(f'{len(rows)} worlds: mean ratio {np.mean(ratios):.2f}, median '
             f'{np.median(ratios):.2f}, min covered {100 * min(r["covered"] for r in rows):.2f} %')
+        if oracle:
+            o = [r['oracle_m'] / r['bound_m'] for r in rows]
+            out(f'oracle (full knowledge): mean ratio {np.mean(o):.2f}, median '
+                f'{np.median(o):.2f}; planner/oracle mean '
+                f'{np.mean([r["path_m"] / r["oracle_m"] for r in rows]):.2f}')
     return rows

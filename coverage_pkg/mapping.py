@@ -11,6 +11,7 @@ which boundary and GVD pieces still have something to show.
 import math
 
 import numpy as np
+from scipy import ndimage
 
 L_FREE = -0.4       # log-odds added by a free observation
 L_OCC = 0.9         # log-odds added by an echo arc
@@ -134,6 +135,38 @@ class EvidenceGrid:
         vis = before == 0
         self.viewed[rows[vis], cols[vis]] = True
 
+    def rejudge_viewed(self, poses, radius, rows, cols, k=12):
+        """Mark viewed the candidate cells ``rows, cols`` (known free, not yet viewed) that one
+        of the past detector ``poses`` (n, 2) sees on **today's** map: centre within
+        ``radius - res`` and every sample of the segment on known free cells.
+
+        :meth:`mark_viewed` judges a ray on the map of the moment it was cast; a cell the
+        sonar cleared only later (a gap between cones, a grazing wall) stays unviewed although
+        the detector had a clear line to it. The world is static, so a segment through cells
+        known free now was free then. Returns the number of cells marked."""
+        if len(poses) == 0 or len(rows) == 0:
+            return 0
+        from scipy.spatial import cKDTree
+        reach = radius - self.res
+        cen = self.center(rows, cols)
+        dist, idx = cKDTree(poses).query(cen, k=min(k, len(poses)), distance_upper_bound=reach)
+        dist = dist.reshape(len(cen), -1)
+        idx = idx.reshape(len(cen), -1)
+        ci, pj = np.nonzero(np.isfinite(dist))
+        if len(ci) == 0:
+            return 0
+        a = np.asarray(poses, dtype=float)[idx[ci, pj]]
+        b = cen[ci]
+        n = int(math.ceil(reach / (0.5 * self.res))) + 1
+        t = np.linspace(0.0, 1.0, n)
+        px = a[:, 0, None] + (b[:, 0] - a[:, 0])[:, None] * t[None, :]
+        py = a[:, 1, None] + (b[:, 1] - a[:, 1])[:, None] * t[None, :]
+        r, c = self.cells(np.stack([px.ravel(), py.ravel()], axis=1))
+        clear = (self.logodds[r, c] < T_FREE).reshape(px.shape).all(axis=1)
+        hit = np.unique(ci[clear])
+        self.viewed[rows[hit], cols[hit]] = True
+        return int(len(hit))
+
     def occupied(self):
         return self.logodds > T_OCC
 
@@ -149,3 +182,20 @@ class EvidenceGrid:
         ny, nx = self.shape
         return (slice(max(rows[0] - margin_cells, 0), min(rows[-1] + margin_cells + 1, ny)),
                 slice(max(cols[0] - margin_cells, 0), min(cols[-1] + margin_cells + 1, nx)))
+
+
+def drop_speckles(unseen, frontier, resolution, min_area):
+    """``unseen`` without its speckles: 8-connected pockets smaller than ``min_area`` (m^2)
+    that do not come within two cells of the ``frontier``.
+
+    A pocket of known free cells that the detector has not seen, small and away from the
+    frontier, is a sensing artefact (a wall mapped a cell off, a gap between two cones), not a
+    place: a place not yet seen is a large patch of free space, or it lies where the map still
+    grows, at the frontier. ``min_area <= 0`` keeps everything."""
+    if min_area <= 0 or not unseen.any():
+        return unseen
+    lab, n = ndimage.label(unseen, structure=np.ones((3, 3)))
+    idx = np.arange(1, n + 1)
+    size = ndimage.sum(unseen, lab, idx) * resolution ** 2
+    edge = ndimage.maximum(ndimage.binary_dilation(frontier, iterations=2), lab, idx) > 0
+    return np.r_[False, (size >= min_area) | edge][lab]

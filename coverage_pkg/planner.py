@@ -46,7 +46,7 @@ from scipy import ndimage
 from coverage_pkg import gvd as gvdmod
 from coverage_pkg import morse
 from coverage_pkg.hierarchical_graph import HierarchicalGraph
-from coverage_pkg.mapping import T_FREE, EvidenceGrid
+from coverage_pkg.mapping import T_FREE, EvidenceGrid, drop_speckles
 from coverage_pkg.sonar import sweep_evidence
 from paramotion.errors import UserError
 
@@ -78,6 +78,8 @@ class PlannerConfig:
     gvd_tolerance: float = 0.4         # m, a GVD edge passed this close counts as followed
     lap_tolerance: float = 0.1         # m, same for slices and boundary
     min_charge: int = 2                # unseen cells charged to a work cell to make it work
+    rejudge_footprint: bool = True     # past detector poses re-judged on today's map
+    min_unseen_area: float = 0.2       # m^2, smaller unseen pockets off the frontier: speckles
     min_vast_area: float = 0.5         # m^2, smaller VR components are sensing slivers
     event_tolerance: float = 0.15      # m, equal closest ranges (GVD order) within this
     critical_angle: float = math.radians(12.0)  # bearing tolerance of the critical point test
@@ -97,6 +99,8 @@ class PlannerConfig:
                             f'{self.radius:g} m')
         if not 0 < self.resolution <= self.radius:
             raise UserError(f'resolution {self.resolution:g} m must be in (0, radius]')
+        if not self.min_unseen_area >= 0:
+            raise UserError(f'min_unseen_area {self.min_unseen_area:g} m^2 must be >= 0')
         if sonar_max_range is not None and not sonar_max_range > self.delta:
             raise UserError(f'sonar max range {sonar_max_range:g} m must exceed delta '
                             f'{self.delta:g} m')
@@ -154,6 +158,7 @@ class CoveragePlanner:
         self._closed_cells = []         # centroids of Morse cells reported closed
         self._escape = False
         self._viewed_at = None
+        self._footprints = []           # detector poses (x, y), every 0.1 m of path
 
     # ------------------------------------------------------------------ inputs
 
@@ -195,6 +200,7 @@ class CoveragePlanner:
         if last is None or math.dist(last, self.pose[:2]) >= 0.1:
             self._viewed_at = self.pose[:2]
             self.grid.mark_viewed(self.pose[0], self.pose[1], self.det)
+            self._footprints.append(self.pose[:2])
 
     # ------------------------------------------------------------------ sensor tests
 
@@ -211,7 +217,7 @@ class CoveragePlanner:
         self.min_distance, self._prev_pose = dist, self.pose
         angles = self.mount + self.pose[2]
         order = gvdmod.gvd_order(ranges, angles, self.cfg.event_tolerance)
-        self._sense_cusp(t, prev, dist, prev_pose, order)
+        self._sense_cusp(t, prev, dist, prev_pose, order, ranges, angles)
         if order >= 3 and dist <= self.det and self.goal_kind == 'gvd':
             self._record(t, 'meet', self.pose[:2], f'GVD order {order} at D = {dist:.2f} m',
                          spacing=1.0)
@@ -220,19 +226,24 @@ class CoveragePlanner:
         if side and self.goal_kind == 'lap' and abs(dist - self.det) <= 2.0 * self.cfg.resolution:
             self._sense_critical(t, side)
 
-    def _sense_cusp(self, t, prev, dist, prev_pose, order):
+    def _sense_cusp(self, t, prev, dist, prev_pose, order, ranges, angles):
         """Cusp point: D crosses delta where two closest obstacles are equidistant (on the GVD).
 
         Fig. 11 (tracing a narrow GVD edge, D rises above delta) and Fig. 10 (following the
         boundary at D = delta, a second closest obstacle appears) are the same crossing seen
-        from the two sides; the point is interpolated between the two sweeps.
+        from the two sides. The point is where both closest distances equal delta: from the two
+        closest echoes (d_i along unit bearings n_i), the offset s with n_i . s = d_i - delta
+        (flat obstacles); where the bearings are too close to parallel or opposite for that
+        (a corridor's two walls), it is interpolated between the two sweeps.
         """
         if order < 2 or not math.isfinite(prev) or (prev <= self.det) == (dist <= self.det):
             return
-        f = (self.det - prev) / (dist - prev) if dist != prev else 0.5
-        f = min(max(f, 0.0), 1.0)
-        xy = (prev_pose[0] + f * (self.pose[0] - prev_pose[0]),
-              prev_pose[1] + f * (self.pose[1] - prev_pose[1]))
+        xy = gvdmod.cusp_from_ring(self.pose[:2], ranges, angles, self.det)
+        if xy is None:
+            f = (self.det - prev) / (dist - prev) if dist != prev else 0.5
+            f = min(max(f, 0.0), 1.0)
+            xy = (prev_pose[0] + f * (self.pose[0] - prev_pose[0]),
+                  prev_pose[1] + f * (self.pose[1] - prev_pose[1]))
         way = 'rose above' if dist > self.det else 'fell below'
         self._record(t, 'cusp', xy, f'D {way} delta on the GVD', spacing=0.5)
 
@@ -531,7 +542,12 @@ class CoveragePlanner:
         # until the map has grown past it. Unknown cells next to an echo are the wall.)
         frontier = (~d['free'] & ~d['occupied'] & ndimage.binary_dilation(d['free'])
                     & ~ndimage.binary_dilation(d['occupied'], iterations=2))
-        unseen = (d['free'] & ~self.grid.viewed[rs, cs]) | frontier
+        if self.cfg.rejudge_footprint:
+            ur, uc = np.nonzero(d['free'] & ~self.grid.viewed[rs, cs])
+            self.grid.rejudge_viewed(np.asarray(self._footprints), self.det,
+                                     ur + rs.start, uc + cs.start)
+        unseen = drop_speckles(d['free'] & ~self.grid.viewed[rs, cs], frontier, res,
+                               self.cfg.min_unseen_area) | frontier
         dw, (ir, ic) = ndimage.distance_transform_edt(~work, return_indices=True)
         sel = unseen & (dw * res <= self.det + res)
         charge = np.zeros(work.shape, dtype=np.int32)

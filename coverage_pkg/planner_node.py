@@ -70,6 +70,10 @@ class CoveragePlannerNode(ParamotionNode):
         Param('clearance_margin', 0.1, 'Extra clearance beyond radius for paths (m); '
               'extended detector only (the baseline uses radius / 10).',
               min=0.0, max=2.0, read_only=True),
+        Param('min_unseen_area', 0.2, 'Pockets of known free space the detector has not seen, '
+              'smaller than this (m^2) and away from the frontier, are sensing speckles, not '
+              'work; extended detector only (the baseline keeps every pocket).', min=0.0,
+              max=10.0, read_only=True),
         Param('marker_period', 5.0, 'Marker publication period (s, sim time).', min=0.1,
               max=600.0),
         Param('marker_stride', 0.4, 'Spacing of the cell markers (m).', min=0.05, max=5.0),
@@ -85,7 +89,8 @@ class CoveragePlannerNode(ParamotionNode):
         else:
             self.config = PlannerConfig(
                 delta=p.delta, radius=p.radius, detector=p.detector, resolution=p.resolution,
-                clearance_margin=p.clearance_margin, **common)
+                clearance_margin=p.clearance_margin, min_unseen_area=p.min_unseen_area,
+                **common)
         self.driver = PlannerDriver(self.config, p.beam_width)
         self.cmd_pub = self.create_publisher(Twist, 'cmd_vel', STATE_QOS)
         self.status_pub = self.create_publisher(DiagnosticArray, '/coverage/status',

@@ -252,6 +252,9 @@ def register(subparsers):
     ratio.add_argument('--worlds', required=True, help='directory of world JSON files')
     ratio.add_argument('--baseline', action='store_true',
                        help='also run the robot-size baseline and print extended/baseline')
+    ratio.add_argument('--oracle', action='store_true',
+                       help='also plan the full-knowledge route (coverage_pkg/oracle.py, reads '
+                       'the true world) and print its ratio and planner/oracle')
     ratio.add_argument('--max-sim-time', type=float, default=3000.0, help='per world (s)')
     ratio.set_defaults(func=_ratio)
 
@@ -261,7 +264,7 @@ def _ratio(args):
     paths = sorted(Path(args.worlds).glob('*.json'))
     if not paths:
         raise UserError(f'--worlds {args.worlds}: no .json world files there')
-    ratio_report(paths, baseline=args.baseline, max_time=args.max_sim_time)
+    ratio_report(paths, baseline=args.baseline, oracle=args.oracle, max_time=args.max_sim_time)
     return 0
 
 

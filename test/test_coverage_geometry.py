@@ -186,6 +186,21 @@ def test_ring_gvd_order_and_cusp_detection_from_range_data():
     assert not gvd.narrow_cusp_crossed(1.9, 1.95, 2.0)
 
 
+def test_cusp_is_located_on_the_bisector_from_one_sweep_off_the_gvd():
+    # Concave corner at (0, 10) (walls x = 0 and y = 10): the GVD is the bisector and D = 2
+    # on it at (2, 8). A sweep from (2.0, 7.85), 0.15 m off the bisector, sees the walls at
+    # 2.0 and 2.15: the cusp is where both are at delta.
+    walls = np.array([[0.0, -5.0, 0.0, 10.0], [0.0, 10.0, 9.0, 10.0]])
+    ang = np.linspace(-math.pi, math.pi, 64, endpoint=False)
+    ranges = raycast_segments(walls, (2.0, 7.85), ang, 5.0)
+    x, y = gvd.cusp_from_ring((2.0, 7.85), ranges, ang, 2.0)
+    assert math.hypot(x - 2.0, y - 8.0) < 0.01
+    # A corridor's two walls face each other: no point of the two is fixed this way.
+    corridor = np.array([[-9.0, 0.0, 9.0, 0.0], [-9.0, 3.8, 9.0, 3.8]])
+    assert gvd.cusp_from_ring((0.0, 1.9), raycast_segments(corridor, (0.0, 1.9), ang, 5.0),
+                              ang, 2.0) is None
+
+
 # ------------------------------------------------------------------ Morse decomposition
 
 def test_reeb_decomposition_around_one_obstacle():
