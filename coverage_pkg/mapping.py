@@ -184,18 +184,26 @@ class EvidenceGrid:
                 slice(max(cols[0] - margin_cells, 0), min(cols[-1] + margin_cells + 1, nx)))
 
 
-def drop_speckles(unseen, frontier, resolution, min_area):
+def drop_speckles(unseen, frontier, resolution, min_area, budget=np.inf):
     """``unseen`` without its speckles: 8-connected pockets smaller than ``min_area`` (m^2)
-    that do not come within two cells of the ``frontier``.
+    that do not come within two cells of the ``frontier``, smallest first, as long as their
+    total area stays within ``budget`` (m^2).
 
-    A pocket of known free cells that the detector has not seen, small and away from the
-    frontier, is a sensing artefact (a wall mapped a cell off, a gap between two cones), not a
-    place: a place not yet seen is a large patch of free space, or it lies where the map still
-    grows, at the frontier. ``min_area <= 0`` keeps everything."""
+    A small pocket of known free cells that the detector has not seen, away from the frontier,
+    is most often a sensing artefact (a wall mapped a cell off, a gap between two cones), and
+    otherwise a sliver (a corner just out of range); neither is worth a trip across the world.
+    A place not yet seen is a large patch of free space or lies where the map still grows, at
+    the frontier, and is always kept. The budget bounds what the planner knowingly leaves
+    unseen. ``min_area <= 0`` keeps everything."""
     if min_area <= 0 or not unseen.any():
         return unseen
     lab, n = ndimage.label(unseen, structure=np.ones((3, 3)))
     idx = np.arange(1, n + 1)
     size = ndimage.sum(unseen, lab, idx) * resolution ** 2
-    edge = ndimage.maximum(ndimage.binary_dilation(frontier, iterations=2), lab, idx) > 0
-    return np.r_[False, (size >= min_area) | edge][lab]
+    keep = (size >= min_area) | (
+        ndimage.maximum(ndimage.binary_dilation(frontier, iterations=2), lab, idx) > 0)
+    cand = np.flatnonzero(~keep)
+    cand = cand[np.argsort(size[cand], kind='stable')]
+    over = np.cumsum(size[cand]) > budget
+    keep[cand[over]] = True
+    return np.r_[False, keep][lab]

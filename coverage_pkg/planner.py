@@ -80,6 +80,7 @@ class PlannerConfig:
     min_charge: int = 2                # unseen cells charged to a work cell to make it work
     rejudge_footprint: bool = True     # past detector poses re-judged on today's map
     min_unseen_area: float = 0.2       # m^2, smaller unseen pockets off the frontier: speckles
+    unseen_budget: float = 0.005       # ... left unseen up to this share of known free space
     min_vast_area: float = 0.5         # m^2, smaller VR components are sensing slivers
     event_tolerance: float = 0.15      # m, equal closest ranges (GVD order) within this
     critical_angle: float = math.radians(12.0)  # bearing tolerance of the critical point test
@@ -101,6 +102,8 @@ class PlannerConfig:
             raise UserError(f'resolution {self.resolution:g} m must be in (0, radius]')
         if not self.min_unseen_area >= 0:
             raise UserError(f'min_unseen_area {self.min_unseen_area:g} m^2 must be >= 0')
+        if not 0 <= self.unseen_budget <= 1:
+            raise UserError(f'unseen_budget {self.unseen_budget:g} must be in [0, 1]')
         if sonar_max_range is not None and not sonar_max_range > self.delta:
             raise UserError(f'sonar max range {sonar_max_range:g} m must exceed delta '
                             f'{self.delta:g} m')
@@ -546,8 +549,9 @@ class CoveragePlanner:
             ur, uc = np.nonzero(d['free'] & ~self.grid.viewed[rs, cs])
             self.grid.rejudge_viewed(np.asarray(self._footprints), self.det,
                                      ur + rs.start, uc + cs.start)
+        budget = self.cfg.unseen_budget * float(d['free'].sum()) * res ** 2
         unseen = drop_speckles(d['free'] & ~self.grid.viewed[rs, cs], frontier, res,
-                               self.cfg.min_unseen_area) | frontier
+                               self.cfg.min_unseen_area, budget) | frontier
         dw, (ir, ic) = ndimage.distance_transform_edt(~work, return_indices=True)
         sel = unseen & (dw * res <= self.det + res)
         charge = np.zeros(work.shape, dtype=np.int32)

@@ -74,6 +74,9 @@ class CoveragePlannerNode(ParamotionNode):
               'smaller than this (m^2) and away from the frontier, are sensing speckles, not '
               'work; extended detector only (the baseline keeps every pocket).', min=0.0,
               max=10.0, read_only=True),
+        Param('unseen_budget', 0.005, 'Speckles are dropped smallest first while their total '
+              'stays within this share of the known free area; extended detector only.',
+              min=0.0, max=0.1, read_only=True),
         Param('marker_period', 5.0, 'Marker publication period (s, sim time).', min=0.1,
               max=600.0),
         Param('marker_stride', 0.4, 'Spacing of the cell markers (m).', min=0.05, max=5.0),
@@ -90,7 +93,7 @@ class CoveragePlannerNode(ParamotionNode):
             self.config = PlannerConfig(
                 delta=p.delta, radius=p.radius, detector=p.detector, resolution=p.resolution,
                 clearance_margin=p.clearance_margin, min_unseen_area=p.min_unseen_area,
-                **common)
+                unseen_budget=p.unseen_budget, **common)
         self.driver = PlannerDriver(self.config, p.beam_width)
         self.cmd_pub = self.create_publisher(Twist, 'cmd_vel', STATE_QOS)
         self.status_pub = self.create_publisher(DiagnosticArray, '/coverage/status',

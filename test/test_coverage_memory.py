@@ -50,6 +50,12 @@ def test_speckles_are_small_pockets_away_from_the_frontier():
     assert out[20:22, 30:32].all()
     assert out[30:36, 5:10].all()
     assert (drop_speckles(unseen, frontier, 0.1, 0.0) == unseen).all()
+    # What is knowingly left unseen is bounded: smallest pockets first, within the budget.
+    unseen[10:13, 20:22] = True                  # 6 cells, 0.06 m^2
+    out = drop_speckles(unseen, frontier, 0.1, 0.2, budget=0.05)
+    assert not out[5:7, 5:7].any() and out[10:13, 20:22].all()
+    out = drop_speckles(unseen, frontier, 0.1, 0.2, budget=0.11)
+    assert not out[5:7, 5:7].any() and not out[10:13, 20:22].any()
 
 
 CORRIDOR = {'name': 'dead_end', 'boundary': [[0, 0], [12, 0], [12, 1.4], [0, 1.4]],
