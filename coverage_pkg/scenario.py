@@ -142,6 +142,9 @@ def _shift_graph(g, dx, dy):
         n['meet_points'] = [sh(c) for c in n['meet_points']]
     for e in g['edges']:
         e['cusp_points'] = [sh(c) for c in e['cusp_points']]
+        e['sensed_cusp_points'] = [sh(c) for c in e.get('sensed_cusp_points', [])]
+        if e.get('shared_boundary_point') is not None:
+            e['shared_boundary_point'] = sh(e['shared_boundary_point'])
     return g
 
 

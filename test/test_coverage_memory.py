@@ -86,3 +86,19 @@ def test_oracle_route_sees_the_target_share_of_cvs_in_a_room_with_an_obstacle():
     assert r['covered_fraction'] >= 0.995
     assert r['lower_bound'] <= r['path_length'] < 4.0 * r['lower_bound']
     assert r['path'][0] == pytest.approx((1.025, 1.025), abs=0.05)
+
+
+def test_result_graph_is_shifted_whole_into_the_map_frame():
+    """Every point of the graph in result.json is in ``map``: the sensed cusps and the shared
+    boundary points too, not only the nodes and the cusp list."""
+    from coverage_pkg.scenario import _shift_graph
+    g = {'nodes': [{'anchor': [0, 0], 'centroid': [1, 1], 'critical_points': [[2, 2, 'opens']],
+                    'meet_points': [[3, 3]]}],
+         'edges': [{'cusp_points': [[4, 4]], 'sensed_cusp_points': [[4, 4]],
+                    'shared_boundary_point': [5, 5]},
+                   {'cusp_points': [], 'sensed_cusp_points': [], 'shared_boundary_point': None}]}
+    out = _shift_graph(g, 1.0, -1.0)
+    assert out['nodes'][0]['critical_points'] == [[3.0, 1.0, 'opens']]
+    assert out['edges'][0]['sensed_cusp_points'] == [[5.0, 3.0]]
+    assert out['edges'][0]['shared_boundary_point'] == [6.0, 4.0]
+    assert out['edges'][1]['shared_boundary_point'] is None
