@@ -29,8 +29,12 @@ def test_bag_cli_play_and_record_across_processes(tmp_path):
     sample = Path(__file__).resolve().parents[1] / 'bags' / 'smoke_sample'
     out = tmp_path / 'copy'
     cli = [sys.executable, '-m', 'paramotion.cli', 'bag']
+    # Ctrl-C must reach it even when this test runs as a background job (a shell without job
+    # control starts those with SIGINT ignored, and children inherit that; the recorder then
+    # rightly keeps ignoring it, as background jobs must).
     rec = subprocess.Popen(cli + ['record', '-o', str(out), '/smoke/range', '--use-sim-time'],
-                           stdout=subprocess.PIPE, text=True)
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                           preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         play = subprocess.run(cli + ['play', str(sample), '--topics', '/smoke/range', '--rate',
                                      '5', '--wait-for-matched', '/smoke/range:1'],
@@ -40,11 +44,18 @@ def test_bag_cli_play_and_record_across_processes(tmp_path):
         # only returns after its last reliable message is published; give delivery a moment.
         time.sleep(1.0)
         rec.send_signal(signal.SIGINT)
-        rec_out, _ = rec.communicate(timeout=60)
+        try:
+            rec_out, rec_err = rec.communicate(timeout=60)
+        except subprocess.TimeoutExpired:
+            rec.send_signal(signal.SIGUSR1)          # its stacks, to see where it stands
+            time.sleep(1.0)
+            rec.kill()
+            rec_out, rec_err = rec.communicate()
+            raise AssertionError(f'recorder still running 60 s after Ctrl-C:\n{rec_err}')
     finally:
         if rec.poll() is None:
             rec.kill()
-    assert play.returncode == 0 and rec.returncode == 0, play.stderr
+    assert play.returncode == 0 and rec.returncode == 0, (play.stderr, rec_err)
     original = read_messages(sample, ['/smoke/range'])
     copied = read_messages(out, ['/smoke/range'])
     assert [m.data for m in copied] == [m.data for m in original]

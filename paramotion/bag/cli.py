@@ -1,4 +1,6 @@
 """``paramotion bag record|play|info|reindex``: the bag tools without the ros2 CLI."""
+import faulthandler
+import signal
 import sys
 import time
 
@@ -35,6 +37,8 @@ def _spin_node(node_cls, params, until=None, duration=None, linger=0.0):
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 
     from paramotion.node import overrides_from_dict
+    # ``kill -USR1`` prints where every thread is: the way to see a process that does not stop.
+    faulthandler.register(signal.SIGUSR1, all_threads=True)
     context = rclpy.Context()
     rclpy.init(context=context)
     node = None
@@ -53,10 +57,16 @@ def _spin_node(node_cls, params, until=None, duration=None, linger=0.0):
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
-        executor.shutdown()
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown(context=context)
+        # A teardown still running after 20 s prints every thread's stack to stderr (it goes
+        # on; the bag itself is closed by destroy_node).
+        faulthandler.dump_traceback_later(20.0)
+        try:
+            executor.shutdown()
+            if node is not None:
+                node.destroy_node()
+            rclpy.try_shutdown(context=context)
+        finally:
+            faulthandler.cancel_dump_traceback_later()
     return node
 
 
