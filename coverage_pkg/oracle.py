@@ -52,31 +52,24 @@ def _string_pull(passable, cells):
     if len(cells) <= 2:
         return list(cells)
     out = [cells[0]]
-    i = 0
-    while i < len(cells) - 1:
-        lo, hi = i + 1, len(cells) - 1
-        j = lo
-        # Farthest visible cell by doubling then bisection (visibility is not monotone in
-        # general, so the candidate is verified; a failed jump falls back to the next cell).
-        step = 1
-        while i + step <= hi and _segment_free(passable, cells[i], cells[i + step]):
+    i, last = 0, len(cells) - 1
+    while i < last:
+        # Farthest cell with a free straight line: gallop, then bisect up to the first failed
+        # jump. Visibility along a path is not monotone, so every jump taken is checked.
+        j, step = i + 1, 1
+        while i + step <= last and _segment_free(passable, cells[i], cells[i + step]):
             j = i + step
             step *= 2
-        lo2, hi2 = j, min(i + step, hi)
-        while lo2 < hi2:
-            mid = (lo2 + hi2 + 1) // 2
+        lo, hi = j, min(i + step, last)
+        while lo < hi:
+            mid = (lo + hi + 1) // 2
             if _segment_free(passable, cells[i], cells[mid]):
-                lo2 = mid
+                lo = mid
             else:
-                hi2 = mid - 1
-        j = max(j, lo2)
-        out.append(cells[j])
-        i = j
+                hi = mid - 1
+        out.append(cells[lo])
+        i = lo
     return out
-
-
-def _tour_length(order, dist):
-    return float(sum(dist[a, b] for a, b in zip(order[:-1], order[1:])))
 
 
 def _improve_tour(order, dist):
@@ -121,8 +114,8 @@ def _improve_tour(order, dist):
 class OracleRoute:
     """Offline route through the true world that sees ``target`` of CVS (see module doc)."""
 
-    def __init__(self, world, radius, delta, target=0.998, view_step=0.25,
-                 clearance_margin=0.05, pose_step=0.2):
+    def __init__(self, world, radius, delta, target=0.998, clearance_margin=0.05,
+                 pose_step=0.2):
         self.world = world
         self.cvs = CoverableSet(world, radius, delta, 0.05)
         self.acc = CoverageAccumulator(self.cvs)
@@ -152,7 +145,7 @@ class OracleRoute:
         rr, cc = np.nonzero(self.passable & lattice)
         return list(zip(rr.tolist(), cc.tolist()))
 
-    def _set_cover(self, cells, sets, need):
+    def _set_cover(self, sets, need):
         """Lazy greedy set cover until ``need`` targets are covered."""
         covered = np.zeros(self.n_targets, dtype=bool)
         heap = [(-len(s), i) for i, s in enumerate(sets)]
@@ -211,7 +204,7 @@ class OracleRoute:
         cand = self._viewpoints(view_step)
         sets = [self._sees(c) for c in cand]
         need = int(math.ceil(self.target * self.n_targets))
-        chosen = self._set_cover(cand, sets, need)
+        chosen = self._set_cover(sets, need)
         self._cells = [start] + [cand[i] for i in chosen]
         n = len(self._cells)
         self._engines = []
