@@ -77,8 +77,16 @@ class EvidenceGrid:
         return np.stack([self.origin[0] + (np.asarray(cols) + 0.5) * self.res,
                          self.origin[1] + (np.asarray(rows) + 0.5) * self.res], axis=-1)
 
-    def integrate(self, free_xy, occ_xy):
-        """Add one sweep's evidence; a cell counts once per sweep, echoes win over free."""
+    def integrate(self, free_xy, occ_xy, edge_xy=None):
+        """Add one sweep's evidence; a cell counts once per sweep, echoes win over free.
+
+        ``edge_xy`` are the outer parts of the echo arcs (see
+        :func:`coverage_pkg.sonar.sweep_evidence`). The obstacle that returned an echo lies
+        somewhere on its arc, so an arc cell that other readings show free (known free after
+        this sweep's free evidence) cannot be it; the other edge cells get the echo's
+        evidence. This is how a wall seen only at grazing angles, whose echo comes from the
+        edge of the cone, enters the map; the arc's middle, in front of such a wall, is
+        cleared by the readings that pass through it."""
         pts = [p for p in (free_xy, occ_xy) if len(p)]
         if not pts:
             return
@@ -103,6 +111,13 @@ class EvidenceGrid:
         if len(occ):
             flat[occ] = np.minimum(before + L_OCC, L_MAX)
             seen[occ] = True
+        if edge_xy is not None and len(edge_xy):
+            r, c = self.cells(edge_xy)
+            ok = (r >= 0) & (c >= 0) & (r < self.shape[0]) & (c < nx)
+            edge = np.setdiff1d(r[ok] * nx + c[ok], occ)
+            edge = edge[flat[edge] >= T_FREE]
+            flat[edge] = np.minimum(flat[edge] + L_OCC, L_MAX)
+            seen[edge] = True
 
     def mark_trace(self, x, y, radius):
         """Mark the cells within ``radius`` of the robot centre as traced."""
@@ -117,14 +132,17 @@ class EvidenceGrid:
     def mark_viewed(self, x, y, radius):
         """Mark the cells the detector of range ``radius`` sees from (x, y): along rays through
         known free cells, up to and including the first cell that is not known free. Only
-        cells whose centre lies within ``radius - res`` count, so a cell marked viewed is
-        within range as a whole even where the grid misplaces a wall by a cell (the grid must
-        not claim more than the detector saw)."""
+        free cells sampled within ``radius - res`` count, so a cell marked viewed is within
+        range as a whole even where the grid misplaces a wall by a cell (the grid must not
+        claim more than the detector saw). The first cell that is not free (the wall, where
+        the echo put it) counts if its centre is within ``radius - res / 2``: the wall surface
+        the detector must reach lies in that cell, at most half a cell beyond its centre."""
         self.ensure(x - radius - 1, y - radius - 1, x + radius + 1, y + radius + 1)
         reach = radius - self.res
+        wall_reach = radius - 0.5 * self.res
         n = max(32, int(math.ceil(2 * math.pi * reach / (0.5 * self.res))))
         th = np.linspace(0.0, 2 * math.pi, n, endpoint=False)
-        steps = np.arange(0.0, reach, 0.5 * self.res)
+        steps = np.arange(0.0, wall_reach, 0.5 * self.res)
         px = x + np.cos(th)[:, None] * steps[None, :]
         py = y + np.sin(th)[:, None] * steps[None, :]
         rows, cols = self.cells(np.stack([px.ravel(), py.ravel()], axis=1))
@@ -132,11 +150,16 @@ class EvidenceGrid:
         opaque = ~(self.logodds[rows, cols] < T_FREE)
         opaque[:, 0] = False                               # the robot's own cell
         before = np.cumsum(opaque, axis=1) - opaque        # opaque cells before this sample
-        vis = before == 0
+        vis = (before == 0) & (steps[None, :] < reach)
         self.viewed[rows[vis], cols[vis]] = True
+        first = opaque & (before == 0)
+        wr, wc = rows[first], cols[first]
+        cen = self.center(wr, wc)
+        near = np.hypot(cen[:, 0] - x, cen[:, 1] - y) <= wall_reach
+        self.viewed[wr[near], wc[near]] = True
 
     def rejudge_viewed(self, poses, radius, rows, cols, k=12):
-        """Mark viewed the candidate cells ``rows, cols`` (known free, not yet viewed) that one
+        """Mark viewed the candidate cells ``rows, cols`` (not yet viewed) that one
         of the past detector ``poses`` (n, 2) sees on **today's** map: centre within
         ``radius - res`` and every sample of the segment on known free cells.
 
@@ -162,7 +185,11 @@ class EvidenceGrid:
         px = a[:, 0, None] + (b[:, 0] - a[:, 0])[:, None] * t[None, :]
         py = a[:, 1, None] + (b[:, 1] - a[:, 1])[:, None] * t[None, :]
         r, c = self.cells(np.stack([px.ravel(), py.ravel()], axis=1))
-        clear = (self.logodds[r, c] < T_FREE).reshape(px.shape).all(axis=1)
+        # Every sample on known free cells, except in the candidate cell itself (a wall cell
+        # next to free space is a candidate too: the wall surface lies in it).
+        own = (r.reshape(px.shape) == rows[ci][:, None]) & \
+            (c.reshape(px.shape) == cols[ci][:, None])
+        clear = ((self.logodds[r, c] < T_FREE).reshape(px.shape) | own).all(axis=1)
         hit = np.unique(ci[clear])
         self.viewed[rows[hit], cols[hit]] = True
         return int(len(hit))

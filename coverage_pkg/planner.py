@@ -9,10 +9,11 @@ How Algorithm 1 maps onto this code
 * **Sensing** (every sweep, :meth:`CoveragePlanner.on_sweep`): the ring gives ``D(x)`` (the
   smallest valid range) and the closest obstacles (local minima of range over bearing). The
   paper's sensor tests fire events that are stored with sim time and pose: ``cusp`` when ``D``
-  crosses ``delta`` while two closest obstacles are equidistant (Fig. 10 during boundary
-  following, Fig. 11 while tracing a GVD edge), ``meet`` where three are (GVD order 3, narrow
-  cell), ``critical`` while following the boundary at ``D = delta`` when the closest obstacle
-  lies along ``grad h = +-x`` (the normal is parallel to the slice gradient).
+  crosses ``delta`` near the GVD, placed where the two closest obstacles are both at ``delta``
+  (Fig. 10 during boundary following, Fig. 11 while tracing a GVD edge), ``meet`` where three
+  are equidistant (GVD order 3, narrow cell), ``critical`` while following the boundary at
+  ``D = delta`` when the closest obstacle lies along ``grad h = +-x`` (the normal is parallel
+  to the slice gradient).
 * **Memory**: the sweeps are also fused into an evidence grid (:mod:`coverage_pkg.mapping`).
   On it the planner keeps the cells of the hierarchical decomposition exactly as Section IV-A
   defines them: ``VR = {x in FCS_r : D(x) > delta}``, vast cells = components of VR, narrow
@@ -84,6 +85,7 @@ class PlannerConfig:
     min_vast_area: float = 0.5         # m^2, smaller VR components are sensing slivers
     event_tolerance: float = 0.15      # m, equal closest ranges (GVD order) within this
     critical_angle: float = math.radians(12.0)  # bearing tolerance of the critical point test
+    boundary_cost: float = 0.7         # travel cost of an undone boundary cell (open space: 1)
 
     def detector_range(self):
         """Range of the detector used for coverage: delta, or r for the robot-size baseline."""
@@ -104,6 +106,8 @@ class PlannerConfig:
             raise UserError(f'min_unseen_area {self.min_unseen_area:g} m^2 must be >= 0')
         if not 0 <= self.unseen_budget <= 1:
             raise UserError(f'unseen_budget {self.unseen_budget:g} must be in [0, 1]')
+        if not 0 < self.boundary_cost <= 1:
+            raise UserError(f'boundary_cost {self.boundary_cost:g} must be in (0, 1]')
         if sonar_max_range is not None and not sonar_max_range > self.delta:
             raise UserError(f'sonar max range {sonar_max_range:g} m must exceed delta '
                             f'{self.delta:g} m')
@@ -181,15 +185,15 @@ class CoveragePlanner:
         if self.pose is None:
             return
         ranges = np.asarray(ranges, dtype=float)
-        free_xy, occ_xy, valid = sweep_evidence(
+        free_xy, occ_xy, edge_xy, valid = sweep_evidence(
             self.pose, ranges, self.mount, self.beam_width, self.min_range, self.max_range,
-            self.cfg.resolution, self.noise_std)
+            self.cfg.resolution, self.noise_std, edges=True)
         if valid == 0:
             return                      # all NaN / -inf: no information, as good as silence
         self.t_sweep = t
         if self.t_first_sweep is None:
             self.t_first_sweep = t
-        self.grid.integrate(free_xy, occ_xy)
+        self.grid.integrate(free_xy, occ_xy, edge_xy)
         self.sweeps += 1
         self._detector_footprint()
         if self.cfg.detector == 'extended' and t - self.t_first_sweep >= self.cfg.warmup:
@@ -226,8 +230,22 @@ class CoveragePlanner:
                          spacing=1.0)
         side = morse.critical_from_ring(ranges, self.mount, self.pose[2],
                                         self.cfg.critical_angle)
-        if side and self.goal_kind == 'lap' and abs(dist - self.det) <= 2.0 * self.cfg.resolution:
+        if side and abs(dist - self.det) <= 2.0 * self.cfg.resolution and (
+                self.goal_kind == 'lap' or self._on_boundary()):
             self._sense_critical(t, side)
+
+    def _on_boundary(self):
+        """True if the robot is on the boundary D = delta of a vast cell as memory knows it
+        (within a cell): a transit along the boundary follows it too, and senses its critical
+        points."""
+        d = self.last
+        if not d or 'boundary' not in d:
+            return False
+        rc = d['to_cell'](*self.pose[:2])
+        if rc is None:
+            return False
+        win = (slice(max(rc[0] - 1, 0), rc[0] + 2), slice(max(rc[1] - 1, 0), rc[1] + 2))
+        return bool(d['boundary'][win].any())
 
     def _sense_cusp(self, t, prev, dist, prev_pose, order, ranges, angles):
         """Cusp point: D crosses delta where two closest obstacles are equidistant (on the GVD).
@@ -236,12 +254,18 @@ class CoveragePlanner:
         boundary at D = delta, a second closest obstacle appears) are the same crossing seen
         from the two sides. The point is where both closest distances equal delta: from the two
         closest echoes (d_i along unit bearings n_i), the offset s with n_i . s = d_i - delta
-        (flat obstacles); where the bearings are too close to parallel or opposite for that
-        (a corridor's two walls), it is interpolated between the two sweeps.
+        (flat obstacles). That solve also senses a cusp passed a little off the GVD (the
+        second obstacle within ``max_shift`` of delta, e.g. a boundary followed into a room
+        corner, or left from its end): it places the point where both distances are delta.
+        Where the bearings are too close to parallel or opposite for it (a corridor's two
+        walls), the crossing counts only on the GVD (order 2) and the point is interpolated
+        between the two sweeps.
         """
-        if order < 2 or not math.isfinite(prev) or (prev <= self.det) == (dist <= self.det):
+        if not math.isfinite(prev) or (prev <= self.det) == (dist <= self.det):
             return
         xy = gvdmod.cusp_from_ring(self.pose[:2], ranges, angles, self.det)
+        if xy is None and order < 2:
+            return
         if xy is None:
             f = (self.det - prev) / (dist - prev) if dist != prev else 0.5
             f = min(max(f, 0.0), 1.0)
@@ -253,7 +277,8 @@ class CoveragePlanner:
     def _sense_critical(self, t, side):
         """Critical point of h = x: the closest obstacle is along +-x (normal parallel to
         grad h) while the robot follows the boundary at D = delta. Localised at delta from the
-        closest obstacle point held in memory (the ring's cones quantise bearing)."""
+        closest obstacle point on the sensed side held in memory (the ring's cones quantise
+        bearing)."""
         occ = self.grid.occupied()
         x, y = self.pose[:2]
         k = int(math.ceil((self.det + 0.5) / self.grid.res))
@@ -264,7 +289,17 @@ class CoveragePlanner:
         if len(rr) == 0:
             return
         pts = self.grid.center(rr + rs.start, cc + cs.start)
-        near = pts[int(np.argmin(np.hypot(pts[:, 0] - x, pts[:, 1] - y)))]
+        # The obstacle point on the sensed side (within 30 degrees of +-x): in a room corner the
+        # other wall is as close, and would put the point delta off along the wrong axis.
+        dx, dy = pts[:, 0] - x, pts[:, 1] - y
+        ahead = side * dx >= math.cos(math.radians(30.0)) * np.hypot(dx, dy)
+        if not ahead.any():
+            return
+        pts, dx, dy = pts[ahead], dx[ahead], dy[ahead]
+        # Nearest, with a penalty off the robot's slice: along a wall parallel to the slice
+        # the cell straight ahead (the grid's wall cells jitter by a cell); at a convex vertex
+        # the vertex itself.
+        near = pts[int(np.argmin(np.hypot(dx, dy) + np.abs(dy)))]
         xy = (float(near[0] - side * self.det), float(near[1]))
         kind = 'closes' if side > 0 else 'opens'
         self._record(t, 'critical', xy, f'obstacle at {"+" if side > 0 else "-"}x: the slice '
@@ -326,7 +361,8 @@ class CoveragePlanner:
         rs, cs = g.known_bbox(margin_cells=4)
         res = g.res
         free = g.logodds[rs, cs] < T_FREE
-        dist, fr, fc = gvdmod.distance_transform(~free, res)
+        dist, fr, fc = gvdmod.distance_transform(~(free | self._sonar_gaps(g, rs, cs, free)),
+                                                 res)
         trav = free & (dist > cfg.radius + cfg.clearance_margin)
         r0, c0 = rs.start, cs.start
 
@@ -358,6 +394,27 @@ class CoveragePlanner:
         d['reeb'], d['critical'], d['reeb_edges'] = morse.reeb_decomposition(
             d['vast'] | d['boundary'])
         return d
+
+    @staticmethod
+    def _sonar_gaps(g, rs, cs, free, max_cells=8):
+        """Unknown pockets of at most ``max_cells`` cells enclosed by known free cells (no
+        echo cell next to them): gaps between the ring's cones, not obstacles. An obstacle
+        there would have returned an echo; counted as obstacles, they pinch corridors shut
+        and cut the robot off from space it has already sensed."""
+        occ = g.logodds[rs, cs] > 0.6
+        unknown = ~free & ~occ
+        lab, n = ndimage.label(unknown, structure=np.ones((3, 3)))
+        if n == 0:
+            return np.zeros_like(free)
+        idx = np.arange(1, n + 1)
+        size = ndimage.sum(unknown, lab, idx)
+        near_occ = ndimage.maximum(ndimage.binary_dilation(occ, structure=np.ones((3, 3))),
+                                   lab, idx) > 0
+        edge = np.zeros_like(unknown)
+        edge[0, :] = edge[-1, :] = edge[:, 0] = edge[:, -1] = True
+        on_edge = ndimage.maximum(edge, lab, idx) > 0
+        gap = (size <= max_cells) & ~near_occ & ~on_edge
+        return np.r_[False, gap][lab]
 
     @staticmethod
     def _start_cell(trav, rc, res):
@@ -521,6 +578,7 @@ class CoveragePlanner:
             if c is not None:
                 k = int(math.ceil(0.5 / res))
                 blocked[max(c[0] - k, 0):c[0] + k + 1, max(c[1] - k, 0):c[1] + k + 1] = True
+        d['dtrace'] = dtrace
         need = self._needed_work(d, res)
         # Laps inside VR are driven whole (boustrophedon, Section II); the boundary and the
         # GVD only where something is still unseen.
@@ -528,14 +586,17 @@ class CoveragePlanner:
         d['undone_lap'] = (laps | (d['boundary'] & need)) & (dtrace > cfg.lap_tolerance) \
             & ~blocked
         d['undone_gvd'] = d['narrow_gvd'] & need & (dtrace > cfg.gvd_tolerance) & ~blocked
+        d['undone_view'] = d['approach'] & ~blocked
         d['blocked'] = blocked
-        return d['undone_lap'] | d['undone_gvd']
+        return d['undone_lap'] | d['undone_gvd'] | d['undone_view']
 
     def _needed_work(self, d, res):
         """Work cells (laps, boundary, narrow GVD) that still have something to show: each
-        known free cell the detector has not seen yet is charged to its nearest work cell (the
-        one whose pass would see it, Lemma 1 for the GVD); cells without a charge are done."""
+        known free cell (or wall cell next to one) that the detector has not seen yet is
+        charged to its nearest work cell (the one whose pass would see it, Lemma 1 for the
+        GVD); cells without a charge are done."""
         work = d['lap'] | d['boundary'] | d['narrow_gvd']
+        d['approach'] = np.zeros_like(work)
         if not work.any():
             return np.zeros_like(work)
         rs, cs = d['rs'], d['cs']
@@ -545,19 +606,58 @@ class CoveragePlanner:
         # until the map has grown past it. Unknown cells next to an echo are the wall.)
         frontier = (~d['free'] & ~d['occupied'] & ndimage.binary_dilation(d['free'])
                     & ~ndimage.binary_dilation(d['occupied'], iterations=2))
+        # What the detector must see: the known free cells, and the wall cells next to them.
+        # CVS reaches the wall surface, and the surface lies in the cell the echo marked
+        # (possibly a whole cell beyond the last free cell).
+        targets = d['free'] | (d['occupied'] & ndimage.binary_dilation(d['free']))
         if self.cfg.rejudge_footprint:
-            ur, uc = np.nonzero(d['free'] & ~self.grid.viewed[rs, cs])
+            ur, uc = np.nonzero(targets & ~self.grid.viewed[rs, cs])
             self.grid.rejudge_viewed(np.asarray(self._footprints), self.det,
                                      ur + rs.start, uc + cs.start)
         budget = self.cfg.unseen_budget * float(d['free'].sum()) * res ** 2
-        unseen = drop_speckles(d['free'] & ~self.grid.viewed[rs, cs], frontier, res,
+        unseen = drop_speckles(targets & ~self.grid.viewed[rs, cs], frontier, res,
                                self.cfg.min_unseen_area, budget) | frontier
         dw, (ir, ic) = ndimage.distance_transform_edt(~work, return_indices=True)
         sel = unseen & (dw * res <= self.det + res)
         charge = np.zeros(work.shape, dtype=np.int32)
         np.add.at(charge, (ir[sel], ic[sel]), 1)
+        d['approach'] = self._approach_left_pockets(d, sel & ~frontier, ir, ic, res)
         # A single unseen cell is a sonar speckle more often than a place: two make work.
         return work & (charge >= self.cfg.min_charge)
+
+    def _approach_left_pockets(self, d, sel, ir, ic, res):
+        """Cells from which to see what a finished pass left unseen.
+
+        A cell still unseen although the work cell it is charged to has been followed lies
+        beyond the detector from that pass: e.g. a hall a little wider than 2 delta, whose VR
+        sliver is too small to be a vast cell, traced on its GVD, leaves its walls a few
+        centimetres out of range. Such cells get a piece of their own: the cells of FCS_r one
+        cell wide at delta - res - lap_tolerance from them, with a line of sight through known free
+        cells, each followed once (a traced cell is done whether or not the pocket was seen,
+        so a pocket that cannot be seen costs one pass, never a loop)."""
+        cfg = self.cfg
+        dtrace = d['dtrace']
+        followed = np.where(d['narrow_gvd'], dtrace <= cfg.gvd_tolerance,
+                            dtrace <= cfg.lap_tolerance)
+        left = sel & followed[ir, ic]
+        out = np.zeros_like(left)
+        if left.sum() < cfg.min_charge:
+            return out
+        dl, (lr, lc) = ndimage.distance_transform_edt(~left, return_indices=True)
+        dl = dl * res
+        # A pass within lap_tolerance of the band is still within delta - res of the pocket.
+        reach = self.det - res - cfg.lap_tolerance
+        band = d['reach'] & (dl > reach - res) & (dl <= reach) & (dtrace > cfg.lap_tolerance)
+        rr, cc = np.nonzero(band)
+        if len(rr) == 0:
+            return out
+        tr, tc = lr[rr, cc], lc[rr, cc]
+        t = np.linspace(0.0, 1.0, max(2, int(math.ceil(self.det / (0.5 * res)))))[:-1]
+        pr = np.rint(rr[:, None] + (tr - rr)[:, None] * t[None, :]).astype(np.int64)
+        pc = np.rint(cc[:, None] + (tc - cc)[:, None] * t[None, :]).astype(np.int64)
+        clear = d['free'][pr, pc].all(axis=1)
+        out[rr[clear], cc[clear]] = True
+        return out
 
     def _work_per_node(self, d, undone, node_of):
         """Remaining work per node. Boundary cells lie in NR but are the vast node's work
@@ -619,6 +719,11 @@ class CoveragePlanner:
         from skimage.graph import MCP_Geometric
         cost = np.where(d['reach'],
                         1.0 + 2.0 * np.clip(1.0 - d['dist'] / self.det, 0.0, 1.0), np.inf)
+        # Undone boundary pieces are cheaper than open space: a transit that runs beside one
+        # (from the end of a lap to the next, the boustrophedon link of Section II) follows
+        # it and does that work on the way, instead of leaving it for a trip of its own.
+        cost = np.where(d['reach'] & d['boundary'] & d['undone_lap'], self.cfg.boundary_cost,
+                        cost)
         mcp = MCP_Geometric(cost)
         cum, _ = mcp.find_costs([d['start']])
         return cum * self.grid.res, mcp, cost
@@ -675,12 +780,6 @@ class CoveragePlanner:
         route when the node was just chosen, and follow the piece."""
         cum, mcp, _ = cost
         mine = cand & (d['owner'] == node.id)
-        if node.kind == 'vast':
-            # Boustrophedon: the laps of the cell first, each from its nearer end, then what
-            # the lap ends left of the boundary.
-            laps = mine & d['lap'] & d['vast'] & d['undone_lap']
-            if laps.any():
-                mine = laps
         score = np.where(mine, cum, np.inf)
         if node.kind == 'vast':
             rc = d['reeb'][d['start']]
@@ -694,7 +793,8 @@ class CoveragePlanner:
         self.commit = tuple(d['to_world']([gi[0]], [gi[1]])[0])
         via = self._route_waypoints(d, node)
         path_cells = self._path_via(d, mcp, cost[2], via, gi)
-        kind_mask = d['undone_lap'] if node.kind == 'vast' else d['undone_gvd']
+        kind_mask = (d['undone_lap'] if node.kind == 'vast' else d['undone_gvd']) \
+            | d['undone_view']
         # A lap is followed 4 m at a time; a boundary or GVD piece 1 m at a time, so that the
         # robot turns back as soon as what it was going to see has been seen (the need is
         # re-evaluated at every plan).

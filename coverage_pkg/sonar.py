@@ -94,17 +94,21 @@ def reading_kind(value, min_range, max_range):
 
 
 def sweep_evidence(pose, ranges, mount_angles, beam_width, min_range, max_range, resolution,
-                   noise_std=0.01, arc_fraction=0.35):
+                   noise_std=0.01, arc_fraction=0.35, edges=False):
     """Inverse sonar model for one sweep of the ring.
 
     Returns ``(free_xy, occ_xy, valid)``: sample points of cells that the sweep shows free and
-    of cells on echo arcs, and how many readings carried information. Only the central
-    ``arc_fraction`` of an echo arc is marked occupied: the echo comes from the *nearest* point
-    in the cone, so the rest of the arc usually lies in front of the wall, in free space, and
-    marking it would thicken every wall. A wall point at the edge of one cone is on the axis of
-    another as the ring turns; until then it stays unknown, which the planner treats as an
-    obstacle. Readings classified 'invalid' (NaN, out of range) and 'too_close' (-inf) add
-    nothing.
+    of cells on the central ``arc_fraction`` of each echo arc, and how many readings carried
+    information. With ``edges``, returns ``(free_xy, occ_xy, edge_xy, valid)``: ``edge_xy``
+    samples the rest of each echo arc, out to the cone's edges.
+
+    The echo comes from the *nearest* point in the cone, which lies somewhere on the arc at the
+    echo range. Seen head on, that is the middle of the arc, and the central part is marked
+    occupied outright. At a grazing angle it is the arc's end nearer the wall, and the middle
+    of the arc lies in front of the wall, in free space; marking the whole arc outright would
+    thicken every wall. :meth:`coverage_pkg.mapping.EvidenceGrid.integrate` therefore marks
+    an edge cell only where no other reading has shown it free. Readings classified 'invalid'
+    (NaN, out of range) and 'too_close' (-inf) add nothing.
     """
     x, y, yaw = pose
     r = np.asarray(ranges, dtype=float)
@@ -115,7 +119,7 @@ def sweep_evidence(pose, ranges, mount_angles, beam_width, min_range, max_range,
     use = echo | no_echo                     # NaN, -inf and out-of-range values carry nothing
     valid = int(use.sum())
     if valid == 0:
-        return np.zeros((0, 2)), np.zeros((0, 2)), 0
+        return (np.zeros((0, 2)),) * (3 if edges else 2) + (0,)
     gap = max(2.0 * noise_std, resolution)
     reach = np.where(echo, r, max_range)[use]
     free_len = np.where(echo, r - gap, max_range)[use]
@@ -137,4 +141,8 @@ def sweep_evidence(pose, ranges, mount_angles, beam_width, min_range, max_range,
         mid[n_sub // 2] = True
     ce, se, re = c[is_echo][:, mid], s[is_echo][:, mid], reach[is_echo][:, None]
     occ_xy = np.stack([(x + ce * re).ravel(), (y + se * re).ravel()], axis=1)
-    return free_xy, occ_xy, valid
+    if not edges:
+        return free_xy, occ_xy, valid
+    ce, se = c[is_echo][:, ~mid], s[is_echo][:, ~mid]
+    edge_xy = np.stack([(x + ce * re).ravel(), (y + se * re).ravel()], axis=1)
+    return free_xy, occ_xy, edge_xy, valid
