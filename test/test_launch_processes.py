@@ -175,7 +175,8 @@ def test_respawn_restarts_a_dying_node_and_ctrl_c_stops_everything(tmp_path):
 def test_demo_runs_the_coverage_processes_and_writes_its_outputs(tmp_path):
     """README command 1, cut short by its wall limit: every process stops cleanly, the bag is
     complete, and result.json / coverage.png come from the bag (the covered fraction
-    recomputed from the recorded path agrees with the monitor's last published value)."""
+    recomputed from the path recorded up to the monitor's last published value agrees with
+    that value; the final fraction is later by up to 2 s of sim time)."""
     import json
 
     from paramotion.demo import run_demo
@@ -186,7 +187,8 @@ def test_demo_runs_the_coverage_processes_and_writes_its_outputs(tmp_path):
     assert r['bag_complete'] and r['bag_topics']['/coverage/ground_truth'] > 20
     assert 0.0 < r['covered_fraction_of_cvs'] < 1.0 and r['sim_time_s'] > 5.0
     assert r['monitor_covered_fraction'] is not None
-    assert abs(r['covered_fraction_of_cvs'] - r['monitor_covered_fraction']) < 0.05
+    assert abs(r['covered_fraction_at_monitor'] - r['monitor_covered_fraction']) < 0.05
+    assert r['covered_fraction_of_cvs'] >= r['covered_fraction_at_monitor']
     assert json.loads((out / 'result.json').read_text())['outcome'] == r['outcome']
     assert (out / 'coverage.png').stat().st_size > 10_000
     assert (out / 'logs' / 'coverage_planner-3.log').is_file()
