@@ -47,7 +47,7 @@ from scipy import ndimage
 from coverage_pkg import gvd as gvdmod
 from coverage_pkg import morse
 from coverage_pkg.hierarchical_graph import HierarchicalGraph
-from coverage_pkg.mapping import T_FREE, EvidenceGrid, drop_speckles
+from coverage_pkg.mapping import T_FREE, T_OCC, EvidenceGrid, drop_speckles
 from coverage_pkg.sonar import sweep_evidence
 from paramotion.errors import UserError
 
@@ -361,7 +361,8 @@ class CoveragePlanner:
         rs, cs = g.known_bbox(margin_cells=4)
         res = g.res
         free = g.logodds[rs, cs] < T_FREE
-        dist, fr, fc = gvdmod.distance_transform(~(free | self._sonar_gaps(g, rs, cs, free)),
+        occupied = g.logodds[rs, cs] > T_OCC
+        dist, fr, fc = gvdmod.distance_transform(~(free | self._sonar_gaps(free, occupied)),
                                                  res)
         trav = free & (dist > cfg.radius + cfg.clearance_margin)
         r0, c0 = rs.start, cs.start
@@ -388,7 +389,7 @@ class CoveragePlanner:
         narrow = reach & ~vast
         d = dict(rs=rs, cs=cs, free=free, dist=dist, trav=trav, reach=reach, vast=vast,
                  narrow=narrow, start=start, to_cell=to_cell, to_world=to_world,
-                 trace=g.trace[rs, cs], occupied=g.logodds[rs, cs] > 0.6)
+                 trace=g.trace[rs, cs], occupied=occupied)
         self._lapping_layers(d, g.origin[0] + c0 * res, res)
         self._gvd_layers(d, fr, fc, res)
         d['reeb'], d['critical'], d['reeb_edges'] = morse.reeb_decomposition(
@@ -396,12 +397,11 @@ class CoveragePlanner:
         return d
 
     @staticmethod
-    def _sonar_gaps(g, rs, cs, free, max_cells=8):
+    def _sonar_gaps(free, occ, max_cells=8):
         """Unknown pockets of at most ``max_cells`` cells enclosed by known free cells (no
         echo cell next to them): gaps between the ring's cones, not obstacles. An obstacle
         there would have returned an echo; counted as obstacles, they pinch corridors shut
         and cut the robot off from space it has already sensed."""
-        occ = g.logodds[rs, cs] > 0.6
         unknown = ~free & ~occ
         lab, n = ndimage.label(unknown, structure=np.ones((3, 3)))
         if n == 0:
