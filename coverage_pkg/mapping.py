@@ -35,6 +35,7 @@ class EvidenceGrid:
         self.origin = np.array([center[0] - half_size, center[1] - half_size], dtype=float)
         self.logodds = np.zeros((n, n), dtype=np.float32)
         self.trace = np.zeros((n, n), dtype=bool)
+        self.visited = np.zeros((n, n), dtype=bool)   # held the robot centre
         self.seen = np.zeros((n, n), dtype=bool)      # ever observed (free or occupied)
         self.viewed = np.zeros((n, n), dtype=bool)    # passed under the detector (range delta)
         self.version = 0                              # bumped when the grid changes shape
@@ -62,6 +63,7 @@ class EvidenceGrid:
         widths = ((pad[1], pad[3]), (pad[0], pad[2]))
         self.logodds = np.pad(self.logodds, widths)
         self.trace = np.pad(self.trace, widths)
+        self.visited = np.pad(self.visited, widths)
         self.seen = np.pad(self.seen, widths)
         self.viewed = np.pad(self.viewed, widths)
         self.origin = self.origin - np.array([pad[0], pad[1]]) * self.res
@@ -120,10 +122,12 @@ class EvidenceGrid:
             seen[edge] = True
 
     def mark_trace(self, x, y, radius):
-        """Mark the cells within ``radius`` of the robot centre as traced."""
+        """Mark the cells within ``radius`` of the robot centre as traced, and the cell of
+        the centre itself as visited."""
         self.ensure(x - radius - 1, y - radius - 1, x + radius + 1, y + radius + 1)
         k = int(math.ceil(radius / self.res))
         r0, c0 = self.cells(np.array([[x, y]]))
+        self.visited[r0[0], c0[0]] = True
         rr, cc = np.mgrid[-k:k + 1, -k:k + 1]
         cen = self.center(r0[0] + rr, c0[0] + cc)
         inside = np.hypot(cen[..., 0] - x, cen[..., 1] - y) <= radius

@@ -67,11 +67,12 @@ class PlannerConfig:
     max_speed: float = 1.0             # m/s
     spin_rate: float = 0.6             # rad/s, turns the sonar ring to fill the gaps between cones
     trace_tolerance: float = 0.15      # a piece counts as followed if the centre passed this close
-    replan_period: float = 1.5         # s of sim time between refreshes of the memory
+    replan_period: float = 0.75        # s of sim time between refreshes of the memory
     sonar_timeout: float = 0.5         # s of sim time without a sweep before stopping
     stuck_time: float = 5.0            # s commanded but not moving -> a stuck event
     max_stuck: int = 6                 # consecutive stuck events before stopping for good
     max_retries: int = 3               # stuck events on one node before it is given up
+    backoff_time: float = 1.5          # s backing away from the closest obstacle after one
     gvd_min_angle: float = math.radians(50.0)
     cusp_min_angle: float = math.radians(25.0)  # a 1.2 m door seen from D = delta: 35 deg
     gvd_min_length: float = 0.5        # m, shorter isolated GVD pieces are sensing artefacts
@@ -164,6 +165,7 @@ class CoveragePlanner:
         self.sensed = {'cusp': [], 'critical': [], 'meet': []}   # (x, y, detail) in odom
         self._closed_cells = []         # centroids of Morse cells reported closed
         self._escape = False
+        self._backoff_until = -math.inf
         self._viewed_at = None
         self._footprints = []           # detector poses (x, y), every 0.1 m of path
 
@@ -337,6 +339,11 @@ class CoveragePlanner:
             return Command(0.0, 0.0, self.cfg.spin_rate, self.state)
         if self._check_stuck(t) and self.state == 'stuck':
             return Command(0.0, 0.0, 0.0, self.state)
+        if t < self._backoff_until:
+            # After a stuck event: back away from the closest sensed obstacle first (a robot
+            # that grazed a corner is held by it, and the same plan would push it there again).
+            vx, vy = self._escape_velocity()
+            return self._body(vx, vy)
         at_end = self.path_i >= len(self.path) - 1 and (
             not self.path or math.dist(self.pose[:2], self.path[-1]) < 0.1)
         if at_end or t - self.t_plan >= self.cfg.replan_period:
@@ -344,6 +351,10 @@ class CoveragePlanner:
             if self.state in TERMINAL:
                 return Command(0.0, 0.0, 0.0, self.state)
         vx, vy = self._follow()
+        return self._body(vx, vy)
+
+    def _body(self, vx, vy):
+        """The command for a world-frame velocity (holonomic base, body frame)."""
         yaw = self.pose[2]
         c, s = math.cos(yaw), math.sin(yaw)
         return Command(c * vx + s * vy, -s * vx + c * vy, self.cfg.spin_rate, self.state)
@@ -364,7 +375,10 @@ class CoveragePlanner:
         occupied = g.logodds[rs, cs] > T_OCC
         dist, fr, fc = gvdmod.distance_transform(~(free | self._sonar_gaps(free, occupied)),
                                                  res)
-        trav = free & (dist > cfg.radius + cfg.clearance_margin)
+        # FCS_r as sensed, plus the cells that held the robot centre: it got through there,
+        # so a passage the sonar pinched behind it (a false echo, a gap) cannot cut it off
+        # from the space, and the nodes, it has already sensed.
+        trav = (free & (dist > cfg.radius + cfg.clearance_margin)) | g.visited[rs, cs]
         r0, c0 = rs.start, cs.start
 
         def to_cell(x, y):
@@ -378,7 +392,7 @@ class CoveragePlanner:
             return g.center(np.asarray(rows) + r0, np.asarray(cols) + c0)
 
         start = self._start_cell(trav, to_cell(*self.pose[:2]), res)
-        lab, _ = ndimage.label(trav)
+        lab, _ = ndimage.label(trav, structure=np.ones((3, 3)))
         reach = (lab == lab[start]) if start is not None else np.zeros_like(trav)
         vast = reach & (dist > self.det)
         vl, nv = ndimage.label(vast, structure=np.ones((3, 3)))
@@ -740,13 +754,19 @@ class CoveragePlanner:
             here = int(node_of[d['start']])
             self.current = here if here >= 0 else None
             self._event(t, 'start', f'CreateNode: D(x) says {kind}, node {self.current}')
-        if self.current is not None and (cand & (owner == self.current)).any():
-            return self.graph.nodes[self.current]
-
         def reach_dist(node):
             m = cand & (owner == node.id)
             return float(cum[m].min()) if m.any() else math.inf
         skip = set(self.given_up)
+        if self.current is not None and (cand & (owner == self.current)).any():
+            node = self.graph.nodes[self.current]
+            entered = self._entered_vast_node(node, reach_dist, skip)
+            if entered is None:
+                return node
+            self._event(t, 'next_node', f'vast node {entered.id} entered from narrow node '
+                                        f'{node.id} at its cusp: covered first')
+            self.current = entered.id
+            return entered
         nxt = self.graph.find_uncovered_node(self.current, reach_dist, skip)
         while nxt is not None and not math.isfinite(reach_dist(nxt)):
             skip.add(nxt.id)           # work only behind blocked goals: retried via the graph
@@ -761,6 +781,24 @@ class CoveragePlanner:
             self._route = hops
         self.current = nxt.id
         return nxt
+
+    def _entered_vast_node(self, node, reach_dist, skip):
+        """Depth first, as Algorithm 1 builds the graph: a robot tracing a narrow cell's GVD
+        that crosses a cusp point into an uncovered vast cell covers that cell at once
+        (CreateNode, MorseDecompCoverage), then returns to the narrow cell. The vast node's
+        work within detector range of the robot says it has been entered. Returns the vast
+        neighbour to cover now, or None to keep on with ``node``."""
+        if node.kind != 'narrow':
+            return None
+        best, best_d = None, self.det
+        for nid in sorted(self.graph.neighbours(node.id)):
+            nb = self.graph.nodes[nid]
+            if nb.kind != 'vast' or nb.covered or nid in skip:
+                continue
+            dist = reach_dist(nb)
+            if dist <= best_d:
+                best, best_d = nb, dist
+        return best
 
     def _finish(self, t):
         """No uncovered node reachable: done, unless a node was given up (then incomplete)."""
@@ -931,6 +969,7 @@ class CoveragePlanner:
         self._event(t, 'stuck', f'robot has not moved for {self.cfg.stuck_time:g} s '
                                 f'({self.stuck_count}/{self.cfg.max_stuck})')
         self._retry_or_give_up(t)
+        self._backoff_until = t + self.cfg.backoff_time
         self.path, self.path_i = [], 0
         self.t_plan = -math.inf
         if self.stuck_count >= self.cfg.max_stuck:
