@@ -67,7 +67,7 @@ class PlannerConfig:
     max_speed: float = 1.0             # m/s
     spin_rate: float = 0.6             # rad/s, turns the sonar ring to fill the gaps between cones
     trace_tolerance: float = 0.15      # a piece counts as followed if the centre passed this close
-    replan_period: float = 0.75        # s of sim time between refreshes of the memory
+    replan_period: float = 1.5         # s of sim time between refreshes of the memory
     sonar_timeout: float = 0.5         # s of sim time without a sweep before stopping
     stuck_time: float = 5.0            # s commanded but not moving -> a stuck event
     max_stuck: int = 6                 # consecutive stuck events before stopping for good
@@ -754,19 +754,13 @@ class CoveragePlanner:
             here = int(node_of[d['start']])
             self.current = here if here >= 0 else None
             self._event(t, 'start', f'CreateNode: D(x) says {kind}, node {self.current}')
+        if self.current is not None and (cand & (owner == self.current)).any():
+            return self.graph.nodes[self.current]
+
         def reach_dist(node):
             m = cand & (owner == node.id)
             return float(cum[m].min()) if m.any() else math.inf
         skip = set(self.given_up)
-        if self.current is not None and (cand & (owner == self.current)).any():
-            node = self.graph.nodes[self.current]
-            entered = self._entered_vast_node(node, reach_dist, skip)
-            if entered is None:
-                return node
-            self._event(t, 'next_node', f'vast node {entered.id} entered from narrow node '
-                                        f'{node.id} at its cusp: covered first')
-            self.current = entered.id
-            return entered
         nxt = self.graph.find_uncovered_node(self.current, reach_dist, skip)
         while nxt is not None and not math.isfinite(reach_dist(nxt)):
             skip.add(nxt.id)           # work only behind blocked goals: retried via the graph
@@ -781,24 +775,6 @@ class CoveragePlanner:
             self._route = hops
         self.current = nxt.id
         return nxt
-
-    def _entered_vast_node(self, node, reach_dist, skip):
-        """Depth first, as Algorithm 1 builds the graph: a robot tracing a narrow cell's GVD
-        that crosses a cusp point into an uncovered vast cell covers that cell at once
-        (CreateNode, MorseDecompCoverage), then returns to the narrow cell. The vast node's
-        work within detector range of the robot says it has been entered. Returns the vast
-        neighbour to cover now, or None to keep on with ``node``."""
-        if node.kind != 'narrow':
-            return None
-        best, best_d = None, self.det
-        for nid in sorted(self.graph.neighbours(node.id)):
-            nb = self.graph.nodes[nid]
-            if nb.kind != 'vast' or nb.covered or nid in skip:
-                continue
-            dist = reach_dist(nb)
-            if dist <= best_d:
-                best, best_d = nb, dist
-        return best
 
     def _finish(self, t):
         """No uncovered node reachable: done, unless a node was given up (then incomplete)."""

@@ -63,7 +63,7 @@ class CoveragePlannerNode(ParamotionNode):
         Param('max_speed', 1.0, 'Speed limit (m/s).', min=0.05, max=5.0, read_only=True),
         Param('spin_rate', 0.6, 'Turret spin (rad/s) sweeping the ring over its gaps.',
               min=0.0, max=3.0, read_only=True),
-        Param('replan_period', 0.75, 'Decomposition rebuild period (s, sim time).', min=0.1,
+        Param('replan_period', 1.5, 'Decomposition rebuild period (s, sim time).', min=0.1,
               max=30.0, read_only=True),
         Param('sonar_timeout', 0.5, 'Stop when no sweep for this long (s, sim time).',
               min=0.05, max=10.0, read_only=True),

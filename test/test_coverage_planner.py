@@ -115,3 +115,56 @@ def test_a_stuck_robot_is_reported_not_looped_on():
     assert sum(1 for e in p.events if e[1] == 'stuck') == 3
     assert t < 20.0
     assert p.update(t + 1.0).state == 'stuck'      # and stays stopped
+
+
+def test_a_robot_held_by_a_wall_backs_away_from_it_after_a_stuck_event():
+    """Recovery: a robot that grazed a wall is held there, and the same plan would push it
+    back; after a stuck event it first backs away from the closest sensed obstacle."""
+    world = world_from_dict(SMALL)
+    ring = SonarRing()
+    cfg = PlannerConfig(stuck_time=2.0)
+    p = CoveragePlanner(cfg, ring.mount_angles(), ring.beam_width, ring.min_range,
+                        ring.max_range)
+    t, backing = 0.0, []
+    while t < 20.0:
+        # 0.35 m above the bottom wall (y = 0), base blocked: x and y never change.
+        pose = (4.0, 0.35, math.remainder(cfg.spin_rate * t, 2 * math.pi))
+        p.on_odometry(t, *pose)
+        p.on_sweep(t, simulate_ring(world, pose, ring))
+        cmd = p.update(t)
+        stuck = [e[0] for e in p.events if e[1] == 'stuck']
+        if stuck and t < stuck[0] + cfg.backoff_time - 1e-6:
+            c, s = math.cos(pose[2]), math.sin(pose[2])
+            backing.append((c * cmd.vx - s * cmd.vy, s * cmd.vx + c * cmd.vy))
+        t += 0.1
+    assert len(backing) >= 10
+    for vx, vy in backing:
+        assert math.hypot(vx, vy) == pytest.approx(0.2, abs=1e-6)
+        assert math.degrees(math.atan2(vy, vx)) == pytest.approx(90.0, abs=30.0)   # +y
+
+
+def test_reach_follows_the_robot_through_a_passage_the_map_pinched():
+    """FCS_r as the robot knows it includes the cells that held its centre: a wall the sonar
+    put across a passage behind the robot cannot cut it off from the space it sensed (the
+    nodes there would vanish and the run could end 'done' with them uncovered)."""
+    from coverage_pkg.mapping import L_MAX, L_MIN
+    ring = SonarRing()
+    p = CoveragePlanner(PlannerConfig(), ring.mount_angles(), ring.beam_width,
+                        ring.min_range, ring.max_range)
+    # The robot drove diagonally from (2, 2) to (8, 4) in a 10 m x 6 m room known free ...
+    for k in range(301):
+        f = k / 300.0
+        p.on_odometry(0.1 * k, 2.0 + 6.0 * f, 2.0 + 2.0 * f, 0.0)
+    g = p.grid
+    g.ensure(-1.0, -1.0, 11.0, 7.0)
+    rows, cols = np.mgrid[0:g.shape[0], 0:g.shape[1]]
+    xy = g.center(rows, cols)
+    inside = (xy[..., 0] > 0) & (xy[..., 0] < 10) & (xy[..., 1] > 0) & (xy[..., 1] < 6)
+    g.logodds[...] = np.where(inside, L_MIN, L_MAX).astype(np.float32)
+    # ... then the sonar put a false wall across it at x = 5, behind the robot.
+    g.logodds[np.abs(xy[..., 0] - 5.0) < 0.1] = L_MAX
+    d = p.decompose()
+    assert d['reach'][d['to_cell'](8.0, 4.0)] and d['reach'][d['to_cell'](2.0, 5.0)]
+    g.visited[...] = False                       # without the cells the robot held: cut off
+    d = p.decompose()
+    assert d['reach'][d['to_cell'](8.0, 4.0)] and not d['reach'][d['to_cell'](2.0, 5.0)]
