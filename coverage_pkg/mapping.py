@@ -139,14 +139,11 @@ class EvidenceGrid:
         free cells sampled within ``radius - res`` count, so a cell marked viewed is within
         range as a whole even where the grid misplaces a wall by a cell (the grid must not
         claim more than the detector saw). The first cell that is not free (the wall, where
-        the echo put it) counts if its centre is within ``radius + res / 2``, i.e. if the
-        detector reaches into the cell: the wall surface lies somewhere in that cell, and the
-        grid cannot say where. (Requiring the whole cell, ``radius - res / 2``, made the boundary
-        pass chase wall strips the detector had already reached: measured in docs/coverage.md,
-        stop 23.)"""
+        the echo put it) counts if its centre is within ``radius - res / 2``: the wall surface
+        the detector must reach lies in that cell, at most half a cell beyond its centre."""
         self.ensure(x - radius - 1, y - radius - 1, x + radius + 1, y + radius + 1)
         reach = radius - self.res
-        wall_reach = radius + 0.5 * self.res
+        wall_reach = radius - 0.5 * self.res
         n = max(32, int(math.ceil(2 * math.pi * reach / (0.5 * self.res))))
         th = np.linspace(0.0, 2 * math.pi, n, endpoint=False)
         steps = np.arange(0.0, wall_reach, 0.5 * self.res)
