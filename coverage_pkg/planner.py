@@ -29,8 +29,9 @@ How Algorithm 1 maps onto this code
   edges to their ends). When it is covered, ``FindUncoveredNode`` picks the uncovered node
   fewest graph edges away and the robot is routed to it through the cusp points of the graph
   path. Coverage is complete when the graph has no uncovered node: ``state == 'done'``.
-* **Recovery**: a robot that is commanded but does not move raises a ``stuck`` event; the goal
-  is marked blocked and the node is retried by another route (up to ``max_retries``); then the
+* **Recovery**: a robot that is commanded but does not move raises a ``stuck`` event; it backs
+  away from the closest sensed obstacle for ``backoff_time``, the goal is marked blocked and
+  the node is retried by another route (up to ``max_retries``); then the
   node is given up, reported (``gave_up`` event, :attr:`CoveragePlanner.given_up`), and the run
   ends ``incomplete``, never ``done``.
 
