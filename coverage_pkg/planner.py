@@ -88,6 +88,10 @@ class PlannerConfig:
     event_tolerance: float = 0.15      # m, equal closest ranges (GVD order) within this
     critical_angle: float = math.radians(12.0)  # bearing tolerance of the critical point test
     boundary_cost: float = 0.7         # travel cost of an undone boundary cell (open space: 1)
+    piece_order: str = 'nearest'       # 'nearest' undone cell, or 'tour' (shortest open tour)
+    tour_chunk: float = 1.2            # m, size of the work chunks the tour visits
+    trim_view: bool = True             # end a GVD path where its unseen cells come in view
+    view_margin: float = 0.2           # m, ... within delta - view_margin of the robot
 
     def detector_range(self):
         """Range of the detector used for coverage: delta, or r for the robot-size baseline."""
@@ -636,6 +640,11 @@ class CoveragePlanner:
         sel = unseen & (dw * res <= self.det + res)
         charge = np.zeros(work.shape, dtype=np.int32)
         np.add.at(charge, (ir[sel], ic[sel]), 1)
+        # Work cells that face the frontier: the map, and the work, go on beyond them.
+        fr = sel & frontier
+        d['frontier_work'] = np.zeros(work.shape, dtype=bool)
+        d['frontier_work'][ir[fr], ic[fr]] = True
+        d['charged'] = (np.nonzero(sel), (ir[sel], ic[sel]))
         d['approach'] = self._approach_left_pockets(d, sel & ~frontier, ir, ic, res)
         # A single unseen cell is a sonar speckle more often than a place: two make work.
         return work & (charge >= self.cfg.min_charge)
@@ -801,6 +810,11 @@ class CoveragePlanner:
             if rc:
                 score = score + np.where(d['reeb'] == rc, 0.0, self.spacing)
         gi = np.unravel_index(int(np.argmin(score)), score.shape)
+        on_lap = self._lap_ahead(d, mine, cum) if node.kind == 'vast' else None
+        if on_lap is not None:
+            gi = on_lap
+        if node.kind == 'narrow' and self.cfg.piece_order == 'tour':
+            gi = self._tour_first(d, mine, cum, cost[2]) or gi
         if self.commit is not None:
             cc = d['to_cell'](*self.commit)
             if cc is not None and mine[cc]:
@@ -814,9 +828,14 @@ class CoveragePlanner:
         # robot turns back as soon as what it was going to see has been seen (the need is
         # re-evaluated at every plan).
         lap_goal = bool(d['lap'][gi] and d['vast'][gi])
-        path_cells = path_cells + self._extend(gi, kind_mask & (d['owner'] == node.id),
-                                               max_cells=40 if lap_goal else 10)
+        self._lap_x = float(d['to_world']([gi[0]], [gi[1]])[0][0]) if lap_goal else None
+        ext = self._extend(gi, kind_mask & (d['owner'] == node.id),
+                           max_cells=40 if lap_goal else 10)
+        n_ext = len(ext)
+        path_cells = path_cells + ext
         pts = d['to_world']([p[0] for p in path_cells], [p[1] for p in path_cells])
+        if node.kind == 'narrow' and self.cfg.trim_view:
+            pts = self._trim_to_view(d, pts, path_cells, len(path_cells) - n_ext - 1)
         self.path = [tuple(p) for p in pts]
         self.path_i = 0
         self.goal = self.path[-1]
@@ -824,6 +843,85 @@ class CoveragePlanner:
         self.state = 'covering_' + node.kind
         self.decisions.append((round(t, 3), int(node.id), node.kind,
                                round(float(pts[-1][0]), 2), round(float(pts[-1][1]), 2)))
+
+    def _lap_ahead(self, d, mine, cum):
+        """A lap being driven is driven to its end (boustrophedon, Section II): while the
+        robot is on a slice, the undone cells of that slice right ahead of it (within 1 m of
+        travel) come before any other piece of the vast cell."""
+        lx = getattr(self, '_lap_x', None)
+        if lx is None or abs(self.pose[0] - lx) > 2.0 * self.cfg.lap_tolerance:
+            return None
+        res = self.grid.res
+        col = d['to_cell'](lx, self.pose[1])
+        if col is None:
+            return None
+        on = np.zeros_like(mine)
+        on[:, col[1]] = True
+        cand = mine & d['lap'] & d['vast'] & on & (cum <= 1.0 + res)
+        if not cand.any():
+            return None
+        return np.unravel_index(int(np.argmin(np.where(cand, cum, np.inf))), cand.shape)
+
+    def _trim_to_view(self, d, pts, cells, k_goal):
+        """End the path at its first point from which every unseen cell charged to the goal
+        piece (the goal cell and the cells followed after it) is within the detector's range:
+        the tip of a GVD branch is the work cell nearest a room corner, but the corner is in
+        view well before it."""
+        (ur, uc), (tr, tc) = d['charged']
+        if len(ur) == 0 or k_goal < 0:
+            return pts
+        on = np.zeros(d['reach'].shape, dtype=bool)
+        tail = np.asarray(cells[k_goal:])
+        on[tail[:, 0], tail[:, 1]] = True
+        mine = on[tr, tc]
+        if not mine.any():
+            return pts
+        u = d['to_world'](ur[mine], uc[mine])
+        far = np.max(np.hypot(pts[:, None, 0] - u[None, :, 0], pts[:, None, 1] - u[None, :, 1]),
+                     axis=1)
+        ok = np.flatnonzero(far <= self.det - self.cfg.view_margin)
+        if len(ok) == 0:
+            return pts
+        k = int(ok[0])
+        if np.hypot(*(pts[k] - np.asarray(self.pose[:2]))) < 0.3:
+            return pts              # in view from here already: the map disagrees; go on
+        return pts[:k + 1]
+
+    def _tour_first(self, d, mine, cum, cost):
+        """The first cell of the shortest open tour from the robot through the node's work.
+
+        The work cells are grouped in chunks (``tour_chunk`` squares, split by connectivity);
+        geodesic distances between chunks come from Dijkstra on a coarse copy of the cost
+        grid; the tour is nearest-neighbour then 2-opt. Unlike the nearest cell, the tour
+        finishes a short dead-end branch before the branch that leads on (it would otherwise
+        come back for it)."""
+        from coverage_pkg.tour import chunk_cells, coarse_distances, open_tour
+        res = self.grid.res
+        f = max(1, int(round(0.4 / res)))
+        chunks = chunk_cells(mine, max(1, int(round(self.cfg.tour_chunk / res))))
+        if len(chunks) < 2:
+            return None
+        reps = [c[np.argmin(cum[c[:, 0], c[:, 1]])] for c in chunks]
+        dist = coarse_distances(cost, [d['start']] + reps, f) * res
+        # The unknown lies beyond the frontier: the tour ends at a chunk facing it (a dummy
+        # end node next to those), so that known dead ends are not left for the end.
+        fw = d.get('frontier_work')
+        faces = np.array([bool(fw[c[:, 0], c[:, 1]].any()) for c in chunks]) \
+            if fw is not None else np.zeros(len(chunks), bool)
+        end = None
+        if faces.any():
+            k = len(dist)
+            full = np.full((k + 1, k + 1), np.inf)
+            full[:k, :k] = dist
+            far = np.where(faces, 0.0, 1e6)
+            full[1:k, k] = full[k, 1:k] = far
+            full[0, k] = full[k, 0] = 1e6
+            full[k, k] = 0.0
+            dist, end = full, k
+        order = open_tour(dist, end)
+        first = chunks[order[1] - 1]
+        k = int(np.argmin(cum[first[:, 0], first[:, 1]]))
+        return int(first[k, 0]), int(first[k, 1])
 
     def _route_waypoints(self, d, node):
         """Cusp points (or shared-boundary points) along the graph route to ``node``, once,
