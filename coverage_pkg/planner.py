@@ -25,10 +25,12 @@ How Algorithm 1 maps onto this code
   that touch, carrying the cusp points sensed (or, before they are sensed, predicted on the GVD
   at ``D = delta``) between them. The current node is covered by ``MorseDecompCoverage``
   (vast: laps on the slices ``x = x0 + k 2 delta`` and the boundary ``D = delta``, the current
-  Morse cell first; a Morse cell whose work is done is closed) or ``TraceGVD`` (narrow: its GVD
-  edges to their ends). When it is covered, ``FindUncoveredNode`` picks the uncovered node
-  fewest graph edges away and the robot is routed to it through the cusp points of the graph
-  path. Coverage is complete when the graph has no uncovered node: ``state == 'done'``.
+  Morse cell first, a lap once begun to its end; a Morse cell whose work is done is closed) or
+  ``TraceGVD`` (narrow: its GVD edges, each as far as what is left unseen beside it needs:
+  the path ends where that comes within ``delta - view_margin``). When it is covered,
+  ``FindUncoveredNode`` picks the uncovered node fewest graph edges away and the robot is
+  routed to it through the cusp points of the graph path. Coverage is complete when the graph
+  has no uncovered node: ``state == 'done'``.
 * **Recovery**: a robot that is commanded but does not move raises a ``stuck`` event; it backs
   away from the closest sensed obstacle for ``backoff_time``, the goal is marked blocked and
   the node is retried by another route (up to ``max_retries``); then the
@@ -88,8 +90,6 @@ class PlannerConfig:
     event_tolerance: float = 0.15      # m, equal closest ranges (GVD order) within this
     critical_angle: float = math.radians(12.0)  # bearing tolerance of the critical point test
     boundary_cost: float = 0.7         # travel cost of an undone boundary cell (open space: 1)
-    piece_order: str = 'nearest'       # 'nearest' undone cell, or 'tour' (shortest open tour)
-    tour_chunk: float = 1.2            # m, size of the work chunks the tour visits
     trim_view: bool = True             # end a GVD path where its unseen cells come in view
     view_margin: float = 0.2           # m, ... within delta - view_margin of the robot
 
@@ -112,6 +112,8 @@ class PlannerConfig:
             raise UserError(f'min_unseen_area {self.min_unseen_area:g} m^2 must be >= 0')
         if not 0 <= self.unseen_budget <= 1:
             raise UserError(f'unseen_budget {self.unseen_budget:g} must be in [0, 1]')
+        if not 0 <= self.view_margin < self.delta:
+            raise UserError(f'view_margin {self.view_margin:g} m must be in [0, delta)')
         if not 0 < self.boundary_cost <= 1:
             raise UserError(f'boundary_cost {self.boundary_cost:g} must be in (0, 1]')
         if sonar_max_range is not None and not sonar_max_range > self.delta:
@@ -171,6 +173,7 @@ class CoveragePlanner:
         self._closed_cells = []         # centroids of Morse cells reported closed
         self._escape = False
         self._backoff_until = -math.inf
+        self._lap_x = None              # x of the lapping slice being driven (None: no lap)
         self._viewed_at = None
         self._footprints = []           # detector poses (x, y), every 0.1 m of path
 
@@ -640,10 +643,6 @@ class CoveragePlanner:
         sel = unseen & (dw * res <= self.det + res)
         charge = np.zeros(work.shape, dtype=np.int32)
         np.add.at(charge, (ir[sel], ic[sel]), 1)
-        # Work cells that face the frontier: the map, and the work, go on beyond them.
-        fr = sel & frontier
-        d['frontier_work'] = np.zeros(work.shape, dtype=bool)
-        d['frontier_work'][ir[fr], ic[fr]] = True
         d['charged'] = (np.nonzero(sel), (ir[sel], ic[sel]))
         d['approach'] = self._approach_left_pockets(d, sel & ~frontier, ir, ic, res)
         # A single unseen cell is a sonar speckle more often than a place: two make work.
@@ -813,8 +812,6 @@ class CoveragePlanner:
         on_lap = self._lap_ahead(d, mine, cum) if node.kind == 'vast' else None
         if on_lap is not None:
             gi = on_lap
-        if node.kind == 'narrow' and self.cfg.piece_order == 'tour':
-            gi = self._tour_first(d, mine, cum, cost[2]) or gi
         if self.commit is not None:
             cc = d['to_cell'](*self.commit)
             if cc is not None and mine[cc]:
@@ -848,7 +845,7 @@ class CoveragePlanner:
         """A lap being driven is driven to its end (boustrophedon, Section II): while the
         robot is on a slice, the undone cells of that slice right ahead of it (within 1 m of
         travel) come before any other piece of the vast cell."""
-        lx = getattr(self, '_lap_x', None)
+        lx = self._lap_x
         if lx is None or abs(self.pose[0] - lx) > 2.0 * self.cfg.lap_tolerance:
             return None
         res = self.grid.res
@@ -886,42 +883,6 @@ class CoveragePlanner:
         if np.hypot(*(pts[k] - np.asarray(self.pose[:2]))) < 0.3:
             return pts              # in view from here already: the map disagrees; go on
         return pts[:k + 1]
-
-    def _tour_first(self, d, mine, cum, cost):
-        """The first cell of the shortest open tour from the robot through the node's work.
-
-        The work cells are grouped in chunks (``tour_chunk`` squares, split by connectivity);
-        geodesic distances between chunks come from Dijkstra on a coarse copy of the cost
-        grid; the tour is nearest-neighbour then 2-opt. Unlike the nearest cell, the tour
-        finishes a short dead-end branch before the branch that leads on (it would otherwise
-        come back for it)."""
-        from coverage_pkg.tour import chunk_cells, coarse_distances, open_tour
-        res = self.grid.res
-        f = max(1, int(round(0.4 / res)))
-        chunks = chunk_cells(mine, max(1, int(round(self.cfg.tour_chunk / res))))
-        if len(chunks) < 2:
-            return None
-        reps = [c[np.argmin(cum[c[:, 0], c[:, 1]])] for c in chunks]
-        dist = coarse_distances(cost, [d['start']] + reps, f) * res
-        # The unknown lies beyond the frontier: the tour ends at a chunk facing it (a dummy
-        # end node next to those), so that known dead ends are not left for the end.
-        fw = d.get('frontier_work')
-        faces = np.array([bool(fw[c[:, 0], c[:, 1]].any()) for c in chunks]) \
-            if fw is not None else np.zeros(len(chunks), bool)
-        end = None
-        if faces.any():
-            k = len(dist)
-            full = np.full((k + 1, k + 1), np.inf)
-            full[:k, :k] = dist
-            far = np.where(faces, 0.0, 1e6)
-            full[1:k, k] = full[k, 1:k] = far
-            full[0, k] = full[k, 0] = 1e6
-            full[k, k] = 0.0
-            dist, end = full, k
-        order = open_tour(dist, end)
-        first = chunks[order[1] - 1]
-        k = int(np.argmin(cum[first[:, 0], first[:, 1]]))
-        return int(first[k, 0]), int(first[k, 1])
 
     def _route_waypoints(self, d, node):
         """Cusp points (or shared-boundary points) along the graph route to ``node``, once,
