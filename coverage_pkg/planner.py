@@ -27,10 +27,12 @@ How Algorithm 1 maps onto this code
   (vast: laps on the slices ``x = x0 + k 2 delta`` and the boundary ``D = delta``, the current
   Morse cell first, a lap once begun to its end; a Morse cell whose work is done is closed) or
   ``TraceGVD`` (narrow: its GVD edges, each as far as what is left unseen beside it needs:
-  the path ends where that comes within ``delta - view_margin``). When it is covered,
-  ``FindUncoveredNode`` picks the uncovered node fewest graph edges away and the robot is
-  routed to it through the cusp points of the graph path. Coverage is complete when the graph
-  has no uncovered node: ``state == 'done'``.
+  the path ends where that comes within ``delta - view_margin``; once no uncovered vast cell
+  borders the node, its pieces in the order of the shortest open tour through them that ends
+  at the frontier, :mod:`coverage_pkg.tour`, so that short dead ends are not left behind).
+  When it is covered, ``FindUncoveredNode`` picks the uncovered node fewest graph edges away
+  and the robot is routed to it through the cusp points of the graph path. Coverage is
+  complete when the graph has no uncovered node: ``state == 'done'``.
 * **Recovery**: a robot that is commanded but does not move raises a ``stuck`` event; it backs
   away from the closest sensed obstacle for ``backoff_time``, the goal is marked blocked and
   the node is retried by another route (up to ``max_retries``); then the
@@ -52,6 +54,7 @@ from coverage_pkg import morse
 from coverage_pkg.hierarchical_graph import HierarchicalGraph
 from coverage_pkg.mapping import T_FREE, T_OCC, EvidenceGrid, drop_speckles
 from coverage_pkg.sonar import sweep_evidence
+from coverage_pkg.tour import COARSE_CELL, chunk_cells, coarse_distances, open_tour
 from paramotion.errors import UserError
 
 TERMINAL = ('done', 'stuck', 'incomplete')
@@ -90,6 +93,8 @@ class PlannerConfig:
     event_tolerance: float = 0.15      # m, equal closest ranges (GVD order) within this
     critical_angle: float = math.radians(12.0)  # bearing tolerance of the critical point test
     boundary_cost: float = 0.7         # travel cost of an undone boundary cell (open space: 1)
+    piece_order: str = 'tour'          # narrow node: 'tour' (shortest open tour) or 'nearest'
+    tour_chunk: float = 1.2            # m, size of the work chunks the tour visits
     trim_view: bool = True             # end a GVD path where its unseen cells come in view
     view_margin: float = 0.2           # m, ... within delta - view_margin of the robot
 
@@ -112,6 +117,11 @@ class PlannerConfig:
             raise UserError(f'min_unseen_area {self.min_unseen_area:g} m^2 must be >= 0')
         if not 0 <= self.unseen_budget <= 1:
             raise UserError(f'unseen_budget {self.unseen_budget:g} must be in [0, 1]')
+        if self.piece_order not in ('tour', 'nearest'):
+            raise UserError(f'piece_order "{self.piece_order}" must be "tour" or "nearest"')
+        if not self.tour_chunk >= self.resolution:
+            raise UserError(f'tour_chunk {self.tour_chunk:g} m must be >= resolution '
+                            f'{self.resolution:g} m')
         if not 0 <= self.view_margin < self.delta:
             raise UserError(f'view_margin {self.view_margin:g} m must be in [0, delta)')
         if not 0 < self.boundary_cost <= 1:
@@ -644,6 +654,10 @@ class CoveragePlanner:
         charge = np.zeros(work.shape, dtype=np.int32)
         np.add.at(charge, (ir[sel], ic[sel]), 1)
         d['charged'] = (np.nonzero(sel), (ir[sel], ic[sel]))
+        # Work cells that face the frontier: the map, and the work, go on beyond them.
+        fr = sel & frontier
+        d['frontier_work'] = np.zeros(work.shape, dtype=bool)
+        d['frontier_work'][ir[fr], ic[fr]] = True
         d['approach'] = self._approach_left_pockets(d, sel & ~frontier, ir, ic, res)
         # A single unseen cell is a sonar speckle more often than a place: two make work.
         return work & (charge >= self.cfg.min_charge)
@@ -812,6 +826,8 @@ class CoveragePlanner:
         on_lap = self._lap_ahead(d, mine, cum) if node.kind == 'vast' else None
         if on_lap is not None:
             gi = on_lap
+        if node.kind == 'narrow' and self._tour_applies(node):
+            gi = self._tour_first(d, mine, cum, cost[2]) or gi
         if self.commit is not None:
             cc = d['to_cell'](*self.commit)
             if cc is not None and mine[cc]:
@@ -883,6 +899,52 @@ class CoveragePlanner:
         if np.hypot(*(pts[k] - np.asarray(self.pose[:2]))) < 0.3:
             return pts              # in view from here already: the map disagrees; go on
         return pts[:k + 1]
+
+    def _tour_applies(self, node):
+        """The tour orders a narrow node's pieces once no uncovered vast cell borders it. While
+        one does, the narrow cell is the ring around it: its pieces are taken nearest first,
+        which passes the vast cell's corners where the cusps are sensed (Fig. 10, 11); the tour
+        cuts across and leaves them unsensed."""
+        if self.cfg.piece_order != 'tour':
+            return False
+        return not any(self.graph.nodes[v].kind == 'vast' and not self.graph.nodes[v].covered
+                       for v in self.graph.neighbours(node.id) if v in self.graph.nodes)
+
+    def _tour_first(self, d, mine, cum, cost):
+        """The first cell of the shortest open tour from the robot through the node's work.
+
+        The work cells are grouped in chunks (``tour_chunk`` squares, split by connectivity);
+        geodesic distances between chunks come from Dijkstra on a coarse copy of the cost
+        grid; the tour is nearest-neighbour then 2-opt. Unlike the nearest cell, the tour
+        finishes a short dead-end branch before the branch that leads on (it would otherwise
+        come back for it). The frontier is where the unknown, and more work, lies: the tour
+        is made to end at a chunk facing it."""
+        res = self.grid.res
+        f = max(1, int(round(COARSE_CELL / res)))
+        chunks = chunk_cells(mine, max(1, int(round(self.cfg.tour_chunk / res))))
+        if len(chunks) < 2:
+            return None
+        reps = [c[np.argmin(cum[c[:, 0], c[:, 1]])] for c in chunks]
+        dist = coarse_distances(cost, [d['start']] + reps, f) * res
+        # A dummy end node, next to the chunks that face the frontier and far from the rest:
+        # a known dead end is then never left for the end of the tour.
+        fw = d.get('frontier_work')
+        faces = np.array([bool(fw[c[:, 0], c[:, 1]].any()) for c in chunks]) \
+            if fw is not None else np.zeros(len(chunks), bool)
+        end = None
+        if faces.any():
+            k = len(dist)
+            full = np.full((k + 1, k + 1), np.inf)
+            full[:k, :k] = dist
+            far = np.where(faces, 0.0, 1e6)
+            full[1:k, k] = full[k, 1:k] = far
+            full[0, k] = full[k, 0] = 1e6
+            full[k, k] = 0.0
+            dist, end = full, k
+        order = open_tour(dist, end)
+        first = chunks[order[1] - 1]
+        k = int(np.argmin(cum[first[:, 0], first[:, 1]]))
+        return int(first[k, 0]), int(first[k, 1])
 
     def _route_waypoints(self, d, node):
         """Cusp points (or shared-boundary points) along the graph route to ``node``, once,

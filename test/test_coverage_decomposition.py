@@ -174,14 +174,19 @@ L_HALL = {'name': 'l_hall_4_3',
 
 
 def test_pockets_a_finished_pass_left_unseen_are_approached_once():
-    """The left-pocket pass is what covers the hall's wall strips: with it >= 99 % of CVS; the
-    same planner without it ends `done` below 99 % (98.8 % when this test was written)."""
+    """The left-pocket pass is what covers the hall's wall strips when the hall's pieces are
+    taken nearest first: with it >= 99 % of CVS, without it `done` below 99 % (98.8 % when this
+    test was written). The default tour order happens to pass close enough to the walls of this
+    hall without it (99.7 % in stop 24), so the pass is shown load-bearing with
+    ``piece_order='nearest'``; the default run must still reach 99 %."""
     from unittest import mock
-    world = world_from_dict(L_HALL)
-    r = run_kinematic(world, PlannerConfig(delta=DELTA), max_time=600)
+    r = run_kinematic(world_from_dict(L_HALL), PlannerConfig(delta=DELTA), max_time=600)
     assert r['state'] == 'done' and r['covered_fraction'] >= 0.99
+    nearest = PlannerConfig(delta=DELTA, piece_order='nearest')
+    r1 = run_kinematic(world_from_dict(L_HALL), nearest, max_time=600)
+    assert r1['state'] == 'done' and r1['covered_fraction'] >= 0.99
     no_band = mock.patch.object(CoveragePlanner, '_approach_left_pockets',
                                 lambda self, d, *args: np.zeros_like(d['reach']))
     with no_band:
-        r0 = run_kinematic(world_from_dict(L_HALL), PlannerConfig(delta=DELTA), max_time=600)
+        r0 = run_kinematic(world_from_dict(L_HALL), nearest, max_time=600)
     assert r0['state'] == 'done' and r0['covered_fraction'] < 0.99
