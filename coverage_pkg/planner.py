@@ -184,6 +184,8 @@ class CoveragePlanner:
         self._escape = False
         self._backoff_until = -math.inf
         self._lap_x = None              # x of the lapping slice being driven (None: no lap)
+        self._tour_chunk = None         # world points of the tour's chunk being covered
+        self._stuck_at = []             # (x, y) where stuck events happened: routes avoid them
         self._viewed_at = None
         self._footprints = []           # detector poses (x, y), every 0.1 m of path
 
@@ -761,6 +763,15 @@ class CoveragePlanner:
         # it and does that work on the way, instead of leaving it for a trip of its own.
         cost = np.where(d['reach'] & d['boundary'] & d['undone_lap'], self.cfg.boundary_cost,
                         cost)
+        # Where the robot got stuck, the next route goes another way if there is one (a
+        # pinch the map shows passable but the robot is not: retry by another route).
+        for sx, sy in self._stuck_at:
+            c = d['to_cell'](sx, sy)
+            if c is not None:
+                k = int(math.ceil(0.3 / self.grid.res))
+                win = (slice(max(c[0] - k, 0), c[0] + k + 1),
+                       slice(max(c[1] - k, 0), c[1] + k + 1))
+                cost[win] = cost[win] * 20.0
         mcp = MCP_Geometric(cost)
         cum, _ = mcp.find_costs([d['start']])
         return cum * self.grid.res, mcp, cost
@@ -827,7 +838,9 @@ class CoveragePlanner:
         if on_lap is not None:
             gi = on_lap
         if node.kind == 'narrow' and self._tour_applies(node):
-            gi = self._tour_first(d, mine, cum, cost[2]) or gi
+            gi = self._tour_next(d, mine, cum, cost[2]) or gi
+        else:
+            self._tour_chunk = None
         if self.commit is not None:
             cc = d['to_cell'](*self.commit)
             if cc is not None and mine[cc]:
@@ -910,6 +923,24 @@ class CoveragePlanner:
         return not any(self.graph.nodes[v].kind == 'vast' and not self.graph.nodes[v].covered
                        for v in self.graph.neighbours(node.id) if v in self.graph.nodes)
 
+    def _tour_next(self, d, mine, cum, cost):
+        """The tour's chunk is kept until its work is done (a tour solved anew at every plan
+        can swap its first two chunks as the map grows, and the robot would zig-zag)."""
+        keep = self._tour_chunk
+        if keep is not None:
+            rc = [d['to_cell'](x, y) for x, y in keep]
+            rc = np.array([c for c in rc if c is not None and mine[c]])
+            if len(rc):
+                k = int(np.argmin(cum[rc[:, 0], rc[:, 1]]))
+                return int(rc[k, 0]), int(rc[k, 1])
+        chunk = self._tour_first(d, mine, cum, cost)
+        if chunk is None:
+            self._tour_chunk = None
+            return None
+        self._tour_chunk = [tuple(p) for p in d['to_world'](chunk[:, 0], chunk[:, 1])]
+        k = int(np.argmin(cum[chunk[:, 0], chunk[:, 1]]))
+        return int(chunk[k, 0]), int(chunk[k, 1])
+
     def _tour_first(self, d, mine, cum, cost):
         """The first cell of the shortest open tour from the robot through the node's work.
 
@@ -942,9 +973,7 @@ class CoveragePlanner:
             full[k, k] = 0.0
             dist, end = full, k
         order = open_tour(dist, end)
-        first = chunks[order[1] - 1]
-        k = int(np.argmin(cum[first[:, 0], first[:, 1]]))
-        return int(first[k, 0]), int(first[k, 1])
+        return chunks[order[1] - 1]
 
     def _route_waypoints(self, d, node):
         """Cusp points (or shared-boundary points) along the graph route to ``node``, once,
@@ -1079,7 +1108,9 @@ class CoveragePlanner:
         ``max_retries`` stuck events on the same node, give the node up (reported)."""
         if self.goal is not None:
             self.blocked.append(self.goal)
+        self._stuck_at.append(self.pose[:2])
         self.commit = None
+        self._tour_chunk = None
         n = self.current
         if n is None:
             return
