@@ -168,3 +168,42 @@ def test_reach_follows_the_robot_through_a_passage_the_map_pinched():
     g.visited[...] = False                       # without the cells the robot held: cut off
     d = p.decompose()
     assert d['reach'][d['to_cell'](8.0, 4.0)] and not d['reach'][d['to_cell'](2.0, 5.0)]
+
+
+def test_after_a_stuck_event_the_route_goes_through_another_gap():
+    """Retry by another route: where the robot got stuck (a pinch the map shows passable but
+    the robot is not) costs 20 times more to cross, so the next route to the same place takes
+    the other gap of the wall when there is one."""
+    from coverage_pkg.mapping import L_MAX, L_MIN
+    ring = SonarRing()
+    p = CoveragePlanner(PlannerConfig(), ring.mount_angles(), ring.beam_width,
+                        ring.min_range, ring.max_range)
+    p.on_odometry(0.0, 3.0, 1.5, 0.0)
+    g = p.grid
+    g.ensure(-1.0, -1.0, 11.0, 7.0)
+    rows, cols = np.mgrid[0:g.shape[0], 0:g.shape[1]]
+    xy = g.center(rows, cols)
+    x, y = xy[..., 0], xy[..., 1]
+    inside = (x > 0) & (x < 10) & (y > 0) & (y < 6)
+    # A wall at x = 5 with a 1 m gap (the robot's centre passes within 0.15 m of its middle)
+    # and a 2 m gap further up.
+    wall = (np.abs(x - 5.0) < 0.15) & ~((y > 1.0) & (y < 2.0)) & ~((y > 3.5) & (y < 5.5))
+    g.logodds[...] = np.where(inside & ~wall, L_MIN, L_MAX).astype(np.float32)
+
+    def route_y_at_the_wall():
+        d = p.decompose()
+        d['undone_lap'] = np.zeros_like(d['reach'])
+        cum, mcp, _ = p._travel_costs(d)
+        goal = d['to_cell'](7.0, 1.5)
+        assert np.isfinite(cum[goal])
+        pts = d['to_world']([c[0] for c in mcp.traceback(goal)],
+                            [c[1] for c in mcp.traceback(goal)])
+        return float(pts[np.argmin(np.abs(pts[:, 0] - 5.0)), 1])
+
+    assert 1.0 < route_y_at_the_wall() < 2.0          # the short way: the lower gap
+    p.pose = (5.0, 1.5, 0.0)
+    p.goal = (7.0, 1.5)
+    p.current = None
+    p._retry_or_give_up(10.0)                         # stuck in the lower gap
+    p.pose = (3.0, 1.5, 0.0)                          # backed away, back at the start
+    assert 3.5 < route_y_at_the_wall() < 5.5          # the long way round: the upper gap
