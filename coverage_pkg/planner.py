@@ -517,6 +517,9 @@ class CoveragePlanner:
         vmap, nmap, node_of = self._update_graph(t, d)
         undone = self._remaining_work(d)
         work = self._work_per_node(d, undone, node_of)
+        if self._retry_blocked(t, d, work):
+            undone = self._remaining_work(d)
+            work = self._work_per_node(d, undone, node_of)
         self._mark_covered(t, d, work, vmap, nmap)
         self._close_morse_cells(t, d, undone, node_of)
         cost = self._travel_costs(d)
@@ -622,6 +625,10 @@ class CoveragePlanner:
         d['undone_gvd'] = d['narrow_gvd'] & need & (dtrace > cfg.gvd_tolerance) & ~blocked
         d['undone_view'] = d['approach'] & ~blocked
         d['blocked'] = blocked
+        # Work that would be undone but for a block (it keeps its node uncovered).
+        d['blocked_undone'] = blocked & (
+            ((laps | (d['boundary'] & need)) & (dtrace > cfg.lap_tolerance))
+            | (d['narrow_gvd'] & need & (dtrace > cfg.gvd_tolerance)) | d['approach'])
         return d['undone_lap'] | d['undone_gvd'] | d['undone_view']
 
     def _needed_work(self, d, res):
@@ -713,11 +720,7 @@ class CoveragePlanner:
     def _mark_covered(self, t, d, work, vmap, nmap):
         """A node is covered when none of its pieces is left; newly sensed space next to it
         can give it work again (it is uncovered again)."""
-        blocked_work = {}
-        if d['blocked'].any():
-            lapwork = (d['lap'] | d['boundary'] | d['narrow_gvd']) & d['blocked']
-            ids = np.unique(d['owner'][lapwork])
-            blocked_work = {int(i) for i in ids if i >= 0}
+        blocked_work = self._blocked_work(d)
         for nid in list(vmap.values()) + list(nmap.values()):
             node = self.graph.nodes[nid]
             was = node.covered
@@ -729,6 +732,34 @@ class CoveragePlanner:
                                           'are blocked')
             if node.covered and not was:
                 self._event(t, 'node_covered', f'{node.kind} node {nid} covered')
+
+    @staticmethod
+    def _blocked_work(d):
+        """Ids of the nodes with blocked work that would otherwise be undone."""
+        ids = np.unique(d['owner'][d['blocked_undone']])
+        return {int(i) for i in ids if i >= 0}
+
+    def _retry_blocked(self, t, d, work):
+        """Recovery: a node whose only work left is blocked, with stuck events to spare, has
+        its blocks lifted and is retried by another route (the place where the robot got stuck
+        costs more to cross now); with ``max_retries`` stuck events it is given up instead
+        (:meth:`_mark_covered`). True if a block was lifted."""
+        lifted = False
+        for nid in self._blocked_work(d):
+            if work.get(nid, 0) or nid in self.given_up or \
+                    self.retries.get(nid, 0) >= self.cfg.max_retries:
+                continue
+            keep = []
+            for b in self.blocked:
+                c = d['to_cell'](*b)
+                if c is None or d['owner'][c] != nid:
+                    keep.append(b)
+            if len(keep) < len(self.blocked):
+                self.blocked = keep
+                lifted = True
+                self._event(t, 'retry', f'node {nid}: only blocked pieces left, retried by '
+                                        'another route')
+        return lifted
 
     def _close_morse_cells(self, t, d, undone, node_of):
         """Report each Morse cell (between two critical points) of a vast node whose laps and
