@@ -77,6 +77,13 @@ class CoveragePlannerNode(ParamotionNode):
         Param('unseen_budget', 0.005, 'Speckles are dropped smallest first while their total '
               'stays within this share of the known free area; extended detector only.',
               min=0.0, max=0.1, read_only=True),
+        Param('piece_order', 'tour', "Order of a narrow cell's pieces once no uncovered vast "
+              "cell borders it: 'tour' (shortest open tour ending at the frontier) or "
+              "'nearest'; extended detector only.", choices=('tour', 'nearest'),
+              read_only=True),
+        Param('view_margin', 0.2, 'A GVD path ends where every unseen cell it was going to '
+              'show is within delta - view_margin (m); extended detector only.', min=0.0,
+              max=2.0, read_only=True),
         Param('marker_period', 5.0, 'Marker publication period (s, sim time).', min=0.1,
               max=600.0),
         Param('marker_stride', 0.4, 'Spacing of the cell markers (m).', min=0.05, max=5.0),
@@ -93,7 +100,8 @@ class CoveragePlannerNode(ParamotionNode):
             self.config = PlannerConfig(
                 delta=p.delta, radius=p.radius, detector=p.detector, resolution=p.resolution,
                 clearance_margin=p.clearance_margin, min_unseen_area=p.min_unseen_area,
-                unseen_budget=p.unseen_budget, **common)
+                unseen_budget=p.unseen_budget, piece_order=p.piece_order,
+                view_margin=p.view_margin, **common)
         self.driver = PlannerDriver(self.config, p.beam_width)
         self.cmd_pub = self.create_publisher(Twist, 'cmd_vel', STATE_QOS)
         self.status_pub = self.create_publisher(DiagnosticArray, '/coverage/status',
@@ -114,6 +122,9 @@ class CoveragePlannerNode(ParamotionNode):
         if values['detector'] == 'extended' and not values['delta'] > values['radius']:
             return (f"parameter 'delta' = {values['delta']} must be greater than "
                     f"'radius' = {values['radius']}")
+        if values['detector'] == 'extended' and not values['view_margin'] < values['delta']:
+            return (f"parameter 'view_margin' = {values['view_margin']} must be less than "
+                    f"'delta' = {values['delta']}")
         if values['resolution'] > values['radius']:
             return (f"parameter 'resolution' = {values['resolution']} must not exceed "
                     f"'radius' = {values['radius']}")
