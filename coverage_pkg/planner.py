@@ -973,7 +973,8 @@ class CoveragePlanner:
         return int(chunk[k, 0]), int(chunk[k, 1])
 
     def _tour_first(self, d, mine, cum, cost):
-        """The first cell of the shortest open tour from the robot through the node's work.
+        """The first chunk ((n, 2) cells) of the shortest open tour from the robot through the
+        node's work; None if there are fewer than two chunks.
 
         The work cells are grouped in chunks (``tour_chunk`` squares, split by connectivity);
         geodesic distances between chunks come from Dijkstra on a coarse copy of the cost
