@@ -620,15 +620,14 @@ class CoveragePlanner:
         # Laps inside VR are driven whole (boustrophedon, Section II); the boundary and the
         # GVD only where something is still unseen.
         laps = d['lap'] & d['vast']
-        d['undone_lap'] = (laps | (d['boundary'] & need)) & (dtrace > cfg.lap_tolerance) \
-            & ~blocked
-        d['undone_gvd'] = d['narrow_gvd'] & need & (dtrace > cfg.gvd_tolerance) & ~blocked
+        lap = (laps | (d['boundary'] & need)) & (dtrace > cfg.lap_tolerance)
+        gvd = d['narrow_gvd'] & need & (dtrace > cfg.gvd_tolerance)
+        d['undone_lap'] = lap & ~blocked
+        d['undone_gvd'] = gvd & ~blocked
         d['undone_view'] = d['approach'] & ~blocked
         d['blocked'] = blocked
         # Work that would be undone but for a block (it keeps its node uncovered).
-        d['blocked_undone'] = blocked & (
-            ((laps | (d['boundary'] & need)) & (dtrace > cfg.lap_tolerance))
-            | (d['narrow_gvd'] & need & (dtrace > cfg.gvd_tolerance)) | d['approach'])
+        d['blocked_undone'] = (lap | gvd | d['approach']) & blocked
         return d['undone_lap'] | d['undone_gvd'] | d['undone_view']
 
     def _needed_work(self, d, res):

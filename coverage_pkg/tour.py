@@ -20,7 +20,10 @@ def chunk_cells(mask, size):
     if n == 0:
         return []
     rr, cc = np.nonzero(mask)
-    key = (lab[rr, cc].astype(np.int64) * 1_000_003 + (rr // size) * 10007 + cc // size)
+    # One key per (component, square row, square column), in that order.
+    _, key = np.unique(np.stack([lab[rr, cc], rr // size, cc // size], axis=1), axis=0,
+                       return_inverse=True)
+    key = key.ravel()
     order = np.argsort(key, kind='stable')
     key, rr, cc = key[order], rr[order], cc[order]
     cuts = np.flatnonzero(np.diff(key)) + 1
