@@ -30,6 +30,9 @@ How Algorithm 1 maps onto this code
   the path ends where that comes within ``delta - view_margin``; once no uncovered vast cell
   borders the node, its pieces in the order of the shortest open tour through them that ends
   at the frontier, :mod:`coverage_pkg.tour`, so that short dead ends are not left behind).
+  A narrow node whose remaining work is ``leave_far`` away while an uncovered vast neighbour's
+  is within ``leave_near`` hands over to that vast node first (the robot would leave it
+  behind; Fig. 13(5) covers a vast cell when it is reached).
   When it is covered, ``FindUncoveredNode`` picks the uncovered node fewest graph edges away
   and the robot is routed to it through the cusp points of the graph path. Coverage is
   complete when the graph has no uncovered node: ``state == 'done'``.
@@ -97,6 +100,9 @@ class PlannerConfig:
     tour_chunk: float = 1.2            # m, size of the work chunks the tour visits
     trim_view: bool = True             # end a GVD path where its unseen cells come in view
     view_margin: float = 0.2           # m, ... within delta - view_margin of the robot
+    lap_ends: bool = True              # a lap is begun at an end of what is left of it
+    leave_far: float = 4.0             # m, a narrow node whose work left is this far ...
+    leave_near: float = 2.0            # ... first covers an uncovered vast neighbour this near
 
     def detector_range(self):
         """Range of the detector used for coverage: delta, or r for the robot-size baseline."""
@@ -124,6 +130,9 @@ class PlannerConfig:
                             f'{self.resolution:g} m')
         if not 0 <= self.view_margin < self.delta:
             raise UserError(f'view_margin {self.view_margin:g} m must be in [0, delta)')
+        if not (self.leave_far >= 0 and self.leave_near >= 0):
+            raise UserError(f'leave_far {self.leave_far:g} m and leave_near '
+                            f'{self.leave_near:g} m must be >= 0')
         if not 0 < self.boundary_cost <= 1:
             raise UserError(f'boundary_cost {self.boundary_cost:g} must be in (0, 1]')
         if sonar_max_range is not None and not sonar_max_range > self.delta:
@@ -818,12 +827,19 @@ class CoveragePlanner:
             here = int(node_of[d['start']])
             self.current = here if here >= 0 else None
             self._event(t, 'start', f'CreateNode: D(x) says {kind}, node {self.current}')
-        if self.current is not None and (cand & (owner == self.current)).any():
-            return self.graph.nodes[self.current]
-
         def reach_dist(node):
             m = cand & (owner == node.id)
             return float(cum[m].min()) if m.any() else math.inf
+        if self.current is not None and (cand & (owner == self.current)).any():
+            node = self.graph.nodes[self.current]
+            vast = self._vast_left_behind(node, reach_dist)
+            if vast is None:
+                return node
+            self._event(t, 'next_node', f'vast node {vast.id} before narrow node {node.id} '
+                                        'leaves it behind')
+            self._route = [node.id, vast.id]
+            self.current = vast.id
+            return vast
         skip = set(self.given_up)
         nxt = self.graph.find_uncovered_node(self.current, reach_dist, skip)
         while nxt is not None and not math.isfinite(reach_dist(nxt)):
@@ -839,6 +855,29 @@ class CoveragePlanner:
             self._route = hops
         self.current = nxt.id
         return nxt
+
+    def _vast_left_behind(self, node, reach_dist):
+        """The uncovered vast neighbour of narrow ``node`` that the robot is about to leave
+        behind, or None: the node's nearest work is ``leave_far`` or more away while the vast
+        cell's is within ``leave_near``.
+
+        A narrow cell is one component of NR, and in a world of rooms that is the wall band of
+        every room, joined through the doors: traced whole first, it leaves each room's vast
+        cell for a trip back across the world at the end. In Fig. 13(5) the robot that reaches
+        a new vast cell covers it before it follows the corridor on; here the vast cell is
+        covered once the band around it is done and the robot would move away."""
+        far, near = self.cfg.leave_far, self.cfg.leave_near
+        if node.kind != 'narrow' or far <= 0 or reach_dist(node) < far:
+            return None
+        best = None
+        for vid in sorted(self.graph.neighbours(node.id)):
+            v = self.graph.nodes[vid]
+            if v.kind != 'vast' or v.covered or vid in self.given_up:
+                continue
+            dv = reach_dist(v)
+            if dv <= near and (best is None or dv < best[0]):
+                best = (dv, v)
+        return None if best is None else best[1]
 
     def _finish(self, t):
         """No uncovered node reachable: done, unless a node was given up (then incomplete)."""
@@ -860,6 +899,7 @@ class CoveragePlanner:
         mine = cand & (d['owner'] == node.id)
         score = np.where(mine, cum, np.inf)
         if node.kind == 'vast':
+            score = np.where(self._lap_middles(d, mine), np.inf, score)
             rc = d['reeb'][d['start']]
             if rc:
                 score = score + np.where(d['reeb'] == rc, 0.0, self.spacing)
@@ -899,6 +939,24 @@ class CoveragePlanner:
         self.state = 'covering_' + node.kind
         self.decisions.append((round(t, 3), int(node.id), node.kind,
                                round(float(pts[-1][0]), 2), round(float(pts[-1][1]), 2)))
+
+    def _lap_middles(self, d, mine):
+        """Undone lap cells with undone lap cells above and below them on their slice: a lap
+        is begun at one end of what is left of it and driven to the other (boustrophedon),
+        never entered in the middle, which would split it into two runs. The slice the robot
+        is on is exempt: a lap under way goes on from where the robot is."""
+        if not self.cfg.lap_ends:
+            return np.zeros_like(mine)
+        lap = mine & d['lap'] & d['vast']
+        here = d['to_cell'](*self.pose[:2])
+        if here is not None:
+            k = int(math.ceil(2.0 * self.cfg.lap_tolerance / self.grid.res))
+            lap[:, max(here[1] - k, 0):here[1] + k + 1] = False   # the slice being driven
+        up = np.zeros_like(lap)
+        down = np.zeros_like(lap)
+        up[:-1] = lap[1:]
+        down[1:] = lap[:-1]
+        return lap & up & down
 
     def _lap_ahead(self, d, mine, cum):
         """A lap being driven is driven to its end (boustrophedon, Section II): while the

@@ -84,6 +84,12 @@ class CoveragePlannerNode(ParamotionNode):
         Param('view_margin', 0.2, 'A GVD path ends where every unseen cell it was going to '
               'show is within delta - view_margin (m); extended detector only.', min=0.0,
               max=2.0, read_only=True),
+        Param('leave_far', 4.0, 'A narrow cell whose nearest work left is at least this far '
+              '(m, travel) first covers an uncovered vast neighbour within leave_near, '
+              'instead of leaving it behind; 0 turns this off. Extended detector only.',
+              min=0.0, max=100.0, read_only=True),
+        Param('leave_near', 2.0, 'See leave_far (m, travel).', min=0.0, max=100.0,
+              read_only=True),
         Param('marker_period', 5.0, 'Marker publication period (s, sim time).', min=0.1,
               max=600.0),
         Param('marker_stride', 0.4, 'Spacing of the cell markers (m).', min=0.05, max=5.0),
@@ -101,7 +107,8 @@ class CoveragePlannerNode(ParamotionNode):
                 delta=p.delta, radius=p.radius, detector=p.detector, resolution=p.resolution,
                 clearance_margin=p.clearance_margin, min_unseen_area=p.min_unseen_area,
                 unseen_budget=p.unseen_budget, piece_order=p.piece_order,
-                view_margin=p.view_margin, **common)
+                view_margin=p.view_margin, leave_far=p.leave_far, leave_near=p.leave_near,
+                **common)
         self.driver = PlannerDriver(self.config, p.beam_width)
         self.cmd_pub = self.create_publisher(Twist, 'cmd_vel', STATE_QOS)
         self.status_pub = self.create_publisher(DiagnosticArray, '/coverage/status',

@@ -190,3 +190,26 @@ def test_pockets_a_finished_pass_left_unseen_are_approached_once():
     with no_band:
         r0 = run_kinematic(world_from_dict(L_HALL), nearest, max_time=600)
     assert r0['state'] == 'done' and r0['covered_fraction'] < 0.99
+
+
+def _first_x_over(path, x):
+    return int(np.flatnonzero(path[:, 0] > x)[0])
+
+
+def test_a_room_is_finished_before_the_robot_moves_on(runs):
+    """Two rooms and one narrow cell (the wall band of both, through the corridor). Once the
+    band of the start room is done, the next narrow work is across the corridor: the start
+    room's vast cell is covered then (``leave_far``), not on a trip back at the end. Once in
+    the second room (x > 12), the robot never comes back into the first (x < 8). Without the
+    rule (``leave_far = 0``) it does: it goes back for the first room's laps (to x = 1.95 when
+    this test was written), and back again for the band of the second."""
+    r = runs['two_rooms']
+    path = np.asarray(r['path'])
+    assert path[_first_x_over(path, 12.0):, 0].min() > 8.0
+    assert any('leaves it behind' in e[4] for e in r['planner'].events)
+    r0 = run_kinematic(world_from_dict(TWO_ROOMS), PlannerConfig(delta=DELTA, leave_far=0.0),
+                       max_time=600)
+    assert r0['state'] == 'done' and r0['covered_fraction'] >= 0.99
+    p0 = np.asarray(r0['path'])
+    assert p0[_first_x_over(p0, 12.0):, 0].min() < 8.0
+    assert r['path_length'] < r0['path_length']
