@@ -28,8 +28,8 @@ How Algorithm 1 maps onto this code
   Morse cell first, a lap once begun to its end; a Morse cell whose work is done is closed) or
   ``TraceGVD`` (narrow: its GVD edges, each as far as what is left unseen beside it needs:
   the path ends where that comes within ``delta - view_margin``; once no uncovered vast cell
-  borders the node, its pieces in the order of the shortest open tour through them that ends
-  at the frontier, :mod:`coverage_pkg.tour`, so that short dead ends are not left behind).
+  borders the node, its pieces in the order of the shortest open tour through them,
+  :mod:`coverage_pkg.tour`, so that short dead ends are not left behind).
   A narrow node whose remaining work is ``leave_far`` away while an uncovered vast neighbour's
   is within ``leave_near`` hands over to that vast node first (the robot would leave it
   behind; Fig. 13(5) covers a vast cell when it is reached).
@@ -671,10 +671,6 @@ class CoveragePlanner:
         charge = np.zeros(work.shape, dtype=np.int32)
         np.add.at(charge, (ir[sel], ic[sel]), 1)
         d['charged'] = (np.nonzero(sel), (ir[sel], ic[sel]))
-        # Work cells that face the frontier: the map, and the work, go on beyond them.
-        fr = sel & frontier
-        d['frontier_work'] = np.zeros(work.shape, dtype=bool)
-        d['frontier_work'][ir[fr], ic[fr]] = True
         d['approach'] = self._approach_left_pockets(d, sel & ~frontier, ir, ic, res)
         # A single unseen cell is a sonar speckle more often than a place: two make work.
         return work & (charge >= self.cfg.min_charge)
@@ -1037,8 +1033,10 @@ class CoveragePlanner:
         geodesic distances between chunks come from Dijkstra on a coarse copy of the cost
         grid; the tour is nearest-neighbour then 2-opt. Unlike the nearest cell, the tour
         finishes a short dead-end branch before the branch that leads on (it would otherwise
-        come back for it). The frontier is where the unknown, and more work, lies: the tour
-        is made to end at a chunk facing it."""
+        come back for it). The tour's end is free. (Until stop 26 it was made to end at a chunk
+        facing the frontier; on the sonar map nearly every chunk faces some frontier, a gap in
+        a mapped wall or a pocket between two cones, and the rule sent the robot across the
+        world to leave a room's last corner for the end: docs/coverage.md, stop 26.)"""
         res = self.grid.res
         f = max(1, int(round(COARSE_CELL / res)))
         chunks = chunk_cells(mine, max(1, int(round(self.cfg.tour_chunk / res))))
@@ -1046,22 +1044,7 @@ class CoveragePlanner:
             return None
         reps = [c[np.argmin(cum[c[:, 0], c[:, 1]])] for c in chunks]
         dist = coarse_distances(cost, [d['start']] + reps, f) * res
-        # A dummy end node, next to the chunks that face the frontier and far from the rest:
-        # a known dead end is then never left for the end of the tour.
-        fw = d.get('frontier_work')
-        faces = np.array([bool(fw[c[:, 0], c[:, 1]].any()) for c in chunks]) \
-            if fw is not None else np.zeros(len(chunks), bool)
-        end = None
-        if faces.any():
-            k = len(dist)
-            full = np.full((k + 1, k + 1), np.inf)
-            full[:k, :k] = dist
-            far = np.where(faces, 0.0, 1e6)
-            full[1:k, k] = full[k, 1:k] = far
-            full[0, k] = full[k, 0] = 1e6
-            full[k, k] = 0.0
-            dist, end = full, k
-        order = open_tour(dist, end)
+        order = open_tour(dist)
         return chunks[order[1] - 1]
 
     def _route_waypoints(self, d, node):
