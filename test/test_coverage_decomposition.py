@@ -213,3 +213,17 @@ def test_a_room_is_finished_before_the_robot_moves_on(runs):
     p0 = np.asarray(r0['path'])
     assert p0[_first_x_over(p0, 12.0):, 0].min() < 8.0
     assert r['path_length'] < r0['path_length']
+
+
+def test_a_hall_is_lapped_after_its_band_is_done(runs):
+    """The empty 18 x 10 room: one narrow cell (the band along the walls) and one vast cell
+    (the hall). The hall's laps reach farther than the rest of the band, so the narrow node
+    does not hand over (``_vast_left_behind``): the band is finished, then the hall is lapped.
+    Stop 25's hand-over, without that condition, took the robot into the laps at 47.5 s with
+    the top band half traced; it came back for the band piece by piece (path 3.64 times the
+    lower bound, against 2.78 with the condition)."""
+    ev = runs['plain']['planner'].events
+    assert not any('leaves it behind' in e[4] for e in ev)
+    to_vast = [e[0] for e in ev if e[1] == 'next_node' and 'vast node' in e[4]]
+    band_done = [e[0] for e in ev if e[1] == 'node_covered' and 'narrow node' in e[4]]
+    assert to_vast and band_done and band_done[0] <= to_vast[0]
