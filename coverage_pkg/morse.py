@@ -59,6 +59,8 @@ class CriticalPoint:
     kind: str           # 'birth' (cell opens), 'death' (cell closes), 'split', 'merge'
     cells_before: list = field(default_factory=list)
     cells_after: list = field(default_factory=list)
+    lo: float = math.nan    # rows the event spans on its slice: the gap between the intervals
+    hi: float = math.nan    # (split, merge) or the interval that opens or closes (birth, death)
 
 
 def reeb_decomposition(mask):
@@ -100,7 +102,8 @@ def reeb_decomposition(mask):
         # Critical events.
         for ai, (a0, a1, cell) in enumerate(prev):
             if not succ[ai]:
-                points.append(CriticalPoint((a0 + a1) / 2.0, j - 1, 'death', [cell], []))
+                points.append(CriticalPoint((a0 + a1) / 2.0, j - 1, 'death', [cell], [],
+                                            a0, a1))
                 edges.append((cell_open.pop(cell, -1), len(points) - 1, cell))
             elif len(succ[ai]) > 1:
                 kids = []
@@ -109,8 +112,8 @@ def reeb_decomposition(mask):
                         assigned[bi] = next_cell
                         next_cell += 1
                     kids.append(assigned[bi])
-                gap = (runs[succ[ai][0]][1] + runs[succ[ai][1]][0]) / 2.0
-                points.append(CriticalPoint(gap, j, 'split', [cell], kids))
+                lo, hi = runs[succ[ai][0]][1], runs[succ[ai][-1]][0]
+                points.append(CriticalPoint((lo + hi) / 2.0, j, 'split', [cell], kids, lo, hi))
                 edges.append((cell_open.pop(cell, -1), len(points) - 1, cell))
                 for k in kids:
                     cell_open.setdefault(k, len(points) - 1)
@@ -118,15 +121,17 @@ def reeb_decomposition(mask):
             if not pred[bi]:
                 assigned[bi] = next_cell
                 next_cell += 1
-                points.append(CriticalPoint((b0 + b1) / 2.0, j, 'birth', [], [assigned[bi]]))
+                points.append(CriticalPoint((b0 + b1) / 2.0, j, 'birth', [], [assigned[bi]],
+                                            b0, b1))
                 cell_open[assigned[bi]] = len(points) - 1
             elif len(pred[bi]) > 1:
                 if assigned[bi] is None:
                     assigned[bi] = next_cell
                     next_cell += 1
                 parents = [prev[ai][2] for ai in pred[bi]]
-                gap = (prev[pred[bi][0]][1] + prev[pred[bi][1]][0]) / 2.0
-                points.append(CriticalPoint(gap, j, 'merge', parents, [assigned[bi]]))
+                lo, hi = prev[pred[bi][0]][1], prev[pred[bi][-1]][0]
+                points.append(CriticalPoint((lo + hi) / 2.0, j, 'merge', parents,
+                                            [assigned[bi]], lo, hi))
                 for c in parents:
                     if c in cell_open:
                         edges.append((cell_open.pop(c), len(points) - 1, c))
@@ -141,6 +146,116 @@ def reeb_decomposition(mask):
     for cell, start in cell_open.items():
         edges.append((start, -1, cell))
     return labels, points, edges
+
+
+@dataclass
+class MorseCells:
+    """Morse cells bounded by *sensed* critical points (see :func:`sensed_morse_cells`)."""
+
+    labels: np.ndarray      # cell number per grid cell, 0 outside the region
+    edges: list             # Reeb graph: (opening point, closing point, cell); -1 = not sensed
+    confirmed: list         # (grid CriticalPoint, index of the sensed point that confirms it)
+    ignored: list           # split/merge slices of the grid that no sensed point confirms
+
+
+def _gap_persists(mask, p, span):
+    """True if the gap of split/merge ``p`` (the rows between its intervals) stays outside
+    ``mask`` for ``span`` columns on the obstacle's side (+x of a split, -x of a merge), with
+    the region going on on both sides of it: an obstacle's delta-offset does; a notch of a
+    ragged sensed wall closes, or one side of it ends, within a column or two."""
+    lo, hi = int(math.floor(p.lo)) + 1, int(math.ceil(p.hi))
+    if hi <= lo:
+        return False
+    step = 1 if p.kind == 'split' else -1
+    for m in range(1, int(span) + 1):
+        j = int(p.col) + step * m
+        if not 0 <= j < mask.shape[1]:
+            return False
+        col = mask[:, j]
+        if col[lo:hi].all() or not (col[:lo].any() and col[hi:].any()):
+            return False                      # the gap closed, or a side ended: a notch
+    return True
+
+
+def sensed_morse_cells(mask, sensed, col_tol, row_tol, min_span=2):
+    """Morse cells of ``mask`` whose boundaries are the slices through **sensed** critical
+    points, as in the incremental construction of Section II / Fig. 4.
+
+    ``sensed`` lists the critical points the robot's sensor test found, in grid indices:
+    ``(row, col, side)`` with ``side = +1`` when the closest obstacle lay along ``+x``
+    (``grad h``: the slice meets an obstacle ahead, a cell *closes* or *splits*) and ``-1``
+    along ``-x`` (a cell *opens* or two *merge* behind an obstacle).
+
+    The grid (the robot's memory) only localises the slices: :func:`reeb_decomposition` finds
+    where the connectivity of the slice of ``mask`` changes. A split or merge there is a cell
+    boundary only if a sensed critical point of the matching side lies on it (within
+    ``col_tol`` columns of the slice, its row within ``row_tol`` of the gap between the
+    intervals); otherwise the cells on both sides are one cell. So a cell boundary appears
+    when, and only when, the robot has sensed the critical point, and a jagged sonar wall
+    (which makes grid splits that no ring ever reports) does not cut a cell. Births and deaths
+    are matched the same way (their row along the interval that opens or closes) to name the
+    cell's opening and closing points in the Reeb graph; they cut nothing.
+
+    A wall parallel to the slice is a segment of degenerate critical points (the ring reports
+    it all along the wall), and the grid's ragged copy of it has notches that look like
+    splits: a split/merge whose gap closes within ``min_span`` columns is such a notch and
+    never cuts (:func:`_gap_persists`).
+    """
+    labels, points, _ = reeb_decomposition(mask)
+    parent = {}
+
+    def find(a):
+        parent.setdefault(a, a)
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return a
+
+    def match(p, side):
+        best, best_d = -1, math.inf
+        for k, (r, c, s) in enumerate(sensed):
+            if s != side or abs(c - p.col) > col_tol:
+                continue
+            lo, hi = (p.lo, p.hi) if math.isfinite(p.lo) else (p.row, p.row)
+            off = max(lo - r, r - hi, 0.0)
+            if off <= row_tol and abs(c - p.col) + off < best_d:
+                best, best_d = k, abs(c - p.col) + off
+        return best
+
+    confirmed, ignored, ends = [], [], []
+    for p in points:
+        side = +1 if p.kind in ('split', 'death') else -1
+        k = match(p, side)
+        if p.kind in ('split', 'merge'):
+            if k < 0 or not _gap_persists(mask, p, min_span):
+                ignored.append(p)
+                cells = [find(c) for c in p.cells_before + p.cells_after]
+                for c in cells[1:]:
+                    parent[find(c)] = find(cells[0])
+                continue
+            confirmed.append((p, k))
+        ends.append((p, k))
+    n = int(labels.max())
+    roots = sorted({find(c) for c in range(1, n + 1)})
+    renum = {r: i + 1 for i, r in enumerate(roots)}
+    lut = np.zeros(n + 1, dtype=np.int32)
+    for c in range(1, n + 1):
+        lut[c] = renum[find(c)]
+    merged = lut[labels]
+    opened, closed = {}, {}
+    for p, k in ends:
+        for c in p.cells_after:
+            opened.setdefault(int(lut[c]), set()).add(k)
+        for c in p.cells_before:
+            closed.setdefault(int(lut[c]), set()).add(k)
+    edges = []
+    for cell in range(1, len(roots) + 1):
+        a = sorted(opened.get(cell, {-1}))
+        b = sorted(closed.get(cell, {-1}))
+        a = [i for i in a if i >= 0] or [-1]
+        b = [i for i in b if i >= 0] or [-1]
+        edges.append((a[0], b[0], cell))
+    return MorseCells(merged, edges, confirmed, ignored)
 
 
 def lap_columns(nx, origin_x, resolution, x_ref, spacing):

@@ -96,6 +96,8 @@ class PlannerConfig:
     min_vast_area: float = 0.5         # m^2, smaller VR components are sensing slivers
     event_tolerance: float = 0.15      # m, equal closest ranges (GVD order) within this
     critical_angle: float = math.radians(12.0)  # bearing tolerance of the critical point test
+    critical_col_tol: float = 0.5      # m, a sensed critical point confirms a slice this near
+    critical_row_tol: float = 1.0      # m, ... and this far along it from the event's gap
     boundary_cost: float = 0.7         # travel cost of an undone boundary cell (open space: 1)
     piece_order: str = 'tour'          # narrow node: 'tour' (shortest open tour) or 'nearest'
     tour_chunk: float = 1.2            # m, size of the work chunks the tour visits
@@ -436,9 +438,26 @@ class CoveragePlanner:
                  trace=g.trace[rs, cs], occupied=occupied)
         self._lapping_layers(d, g.origin[0] + c0 * res, res)
         self._gvd_layers(d, fr, fc, res)
-        d['reeb'], d['critical'], d['reeb_edges'] = morse.reeb_decomposition(
-            d['vast'] | d['boundary'])
+        self._morse_cells(d, res)
         return d
+
+    def _morse_cells(self, d, res):
+        """The Morse cells of the vast region (``h = x``), bounded by the critical points the
+        ring has sensed (:func:`morse.sensed_morse_cells`): a slice where memory shows the
+        connectivity change is a cell boundary once a critical point of the matching side was
+        sensed on it (within ``critical_col_tol`` along x, ``critical_row_tol`` along the
+        slice). Until then the cells on both sides are one cell: Fig. 4's incremental
+        construction, where a cell ends when the robot senses its critical point. A split
+        whose gap closes within delta / 2 is a notch of the sensed wall, not an obstacle."""
+        sensed = []
+        for x, y, _, side in self.sensed['critical']:
+            rc = d['to_cell'](x, y)
+            sensed.append((rc[0], rc[1], side) if rc is not None else (-10 ** 6, -10 ** 6, 0))
+        mc = morse.sensed_morse_cells(d['morse_region'], sensed,
+                                      self.cfg.critical_col_tol / res,
+                                      self.cfg.critical_row_tol / res,
+                                      max(2, round(0.5 * self.det / res)))
+        d['reeb'], d['reeb_edges'], d['morse'] = mc.labels, mc.edges, mc
 
     @staticmethod
     def _sonar_gaps(free, occ, max_cells=8):
@@ -486,8 +505,10 @@ class CoveragePlanner:
             ring = ndimage.binary_dilation(vast, structure=np.ones((3, 3)))
             ring2 = ndimage.binary_dilation(ring, structure=np.ones((3, 3)))
             boundary = d['narrow'] & ring2 & ~ring
+            d['morse_region'] = vast | (d['narrow'] & ring2)
         else:
             boundary = morse.boundary_cells(vast)
+            d['morse_region'] = vast
         lap = morse.lap_columns(vast.shape[1], x0, res, self.x_ref, self.spacing)
         d['boundary'] = boundary
         d['lap'] = (vast | boundary) & lap[None, :]
@@ -599,13 +620,15 @@ class CoveragePlanner:
             node = self.graph.nodes[nid]
             mask = ndimage.binary_dilation(vl == lab, iterations=3)
             mine = []
-            for x, y, detail, side in crit:
+            for k, (x, y, detail, side) in enumerate(crit):
                 cell = d['to_cell'](x, y)
                 if cell is not None and mask[cell]:
-                    mine.append((x, y, 'closes' if side > 0 else 'opens'))
-            node.reeb_points = mine
-            cells = np.unique(d['reeb'][vl == lab])
-            node.reeb_edges = [(int(a), int(b)) for a, b, c in d['reeb_edges'] if c in cells]
+                    mine.append((k, x, y, 'closes' if side > 0 else 'opens'))
+            node.reeb_points = [(x, y, kind) for _, x, y, kind in mine]
+            local = {k: i for i, (k, _, _, _) in enumerate(mine)}
+            cells = set(np.unique(d['reeb'][vl == lab]).tolist())
+            node.reeb_edges = [(local.get(a, -1), local.get(b, -1)) for a, b, c in
+                               d['reeb_edges'] if c in cells]
 
     def _attach_meet_points(self, nl, nmap, d):
         for nid in nmap.values():
@@ -785,8 +808,22 @@ class CoveragePlanner:
                    self._closed_cells):
                 continue
             self._closed_cells.append(xy)
+            a, b, _ = d['reeb_edges'][k]
             self.events.append((round(float(t), 3), 'cell_closed', round(float(xy[0]), 3),
-                                round(float(xy[1]), 3), f'Morse cell {k + 1} covered'))
+                                round(float(xy[1]), 3),
+                                f'Morse cell {k + 1} covered: opened at {self._crit_name(a)}, '
+                                f'closed at {self._crit_name(b)}'))
+
+    def _crit_name(self, k):
+        """A sensed critical point for an event's text: named by the sim time of its
+        ``critical`` event (the text cannot carry coordinates: events move into the map
+        frame, their text does not)."""
+        if k < 0:
+            return 'no sensed critical point'
+        x, y = (round(v, 3) for v in self.sensed['critical'][k][:2])
+        t = next((e[0] for e in self.events if e[1] == 'critical' and e[2:4] == (x, y)), None)
+        return f'the critical point sensed at t = {t:.2f} s' if t is not None else \
+            'a sensed critical point'
 
     def _travel_costs(self, d):
         """Geodesic cost from the robot through sensed FCS_r (higher near obstacles, so that

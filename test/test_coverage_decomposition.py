@@ -120,6 +120,27 @@ def test_every_critical_point_is_sensed_within_0_3_m(runs):
     assert any(e[1] == 'cell_closed' for e in p.events)
 
 
+def test_morse_cells_of_the_vast_node_are_bounded_by_its_sensed_critical_points(runs):
+    """rect_obs: the vast cell is a ring around the obstacle. Its Morse cells (h = x, Fig. 3)
+    are four: left of the obstacle (from the left wall's slice x = 2 to the split at x = 4),
+    below and above it (split to merge at x = 12) and right of it (merge to the right wall's
+    slice x = 14). Each cell boundary is a critical point the ring sensed: the Reeb graph
+    names, for each cell, the sensed point that opened it and the one that closed it."""
+    p = runs['rect_obs']['planner']
+    (vast,) = p.graph.alive('vast')
+    pts, edges = vast.reeb_points, vast.reeb_edges
+    assert len(edges) == 4 and all(a >= 0 and b >= 0 for a, b in edges), edges
+
+    def x_of(i):
+        return pts[i][0]                   # the ROS-free loop's odometry is the world frame
+    spans = sorted((round(x_of(a)), round(x_of(b))) for a, b in edges)
+    assert spans == [(2, 4), (4, 12), (4, 12), (12, 14)], spans
+    assert all(pts[a][2] == 'opens' or round(x_of(a)) == 4 for a, _ in edges)
+    assert all(pts[b][2] == 'closes' or round(x_of(b)) == 12 for _, b in edges)
+    closed = [e for e in p.events if e[1] == 'cell_closed']
+    assert len(closed) >= 4 and all('sensed at t =' in e[4] for e in closed)
+
+
 def test_laps_are_two_delta_apart_on_the_ground_truth_path(runs):
     """Laps are straight runs along the slice direction (|dx| < 5 cm) that cross the vast cell:
     at least 2 delta of y (VR is 6 m tall here), mostly inside VR (true clearance > delta +

@@ -218,6 +218,50 @@ def test_reeb_decomposition_around_one_obstacle():
     assert sorted((a, b) for a, b, _ in edges) == [(0, 1), (1, 2), (1, 2), (2, 3)]
 
 
+def test_morse_cells_are_cut_only_at_sensed_critical_points_of_the_matching_side():
+    """The cells of the vast region are bounded by the slices through the critical points the
+    robot has *sensed* (Fig. 4): the grid only localises them. No sensed point: one cell. The
+    split sensed (obstacle ahead, +x): the left cell closes there, the rest is one cell. Split
+    and merge sensed: the four cells and the Reeb graph of Fig. 3. A point of the wrong side
+    (obstacle behind, -x, on the split's slice) or off the slice confirms nothing."""
+    region = np.zeros((20, 40), dtype=bool)
+    region[2:18, 2:38] = True
+    region[8:12, 15:25] = False
+    split, merge = (10, 14, +1), (9, 25, -1)
+    left, right = (5, 2, -1), (15, 37, +1)
+
+    def cells(sensed):
+        mc = morse.sensed_morse_cells(region, sensed, col_tol=2, row_tol=3)
+        return int(mc.labels.max()), mc
+
+    assert cells([])[0] == 1
+    n, mc = cells([split])
+    assert n == 2 and mc.labels[10, 10] != mc.labels[10, 30]
+    assert mc.labels[5, 20] == mc.labels[15, 20] == mc.labels[10, 30]
+    n, mc = cells([left, split, merge, right])
+    assert n == 4
+    assert len({mc.labels[10, 10], mc.labels[5, 20], mc.labels[15, 20], mc.labels[10, 30]}) == 4
+    # Reeb graph: left wall -> split, split -> merge twice (below and above), merge -> right.
+    assert sorted((a, b) for a, b, _ in mc.edges) == [(0, 1), (1, 2), (1, 2), (2, 3)]
+    assert cells([(10, 14, -1)])[0] == 1                 # wrong side: the obstacle is ahead
+    assert cells([(10, 20, +1)])[0] == 1                 # 6 columns off the slice
+    assert cells([(1, 14, +1)])[0] == 1                  # on the slice, far from the gap
+
+
+def test_a_notch_of_a_ragged_wall_is_not_a_morse_cell_boundary():
+    """A wall parallel to the slice is a segment of (degenerate) critical points, so the ring
+    reports critical points all along it; the grid's ragged copy of the wall has notches that
+    look like splits. A notch whose gap closes within ``min_span`` columns cuts nothing."""
+    region = np.zeros((20, 40), dtype=bool)
+    region[2:18, 3:38] = True
+    region[10, 3] = False                               # a one-cell notch in the left wall
+    labels, points, _ = morse.reeb_decomposition(region)
+    assert [p.kind for p in points] == ['birth', 'birth', 'merge', 'death']
+    wall = [(r, 3, -1) for r in range(2, 18)]           # critical points all along the wall
+    mc = morse.sensed_morse_cells(region, wall, col_tol=2, row_tol=3, min_span=3)
+    assert mc.labels.max() == 1 and [p.kind for p in mc.ignored] == ['merge']
+
+
 def test_critical_point_from_ring_when_closest_obstacle_is_along_the_slice_gradient():
     ang = np.linspace(0, 2 * math.pi, 16, endpoint=False)
     ranges = np.full(16, 4.0)
