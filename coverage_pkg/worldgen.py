@@ -163,6 +163,22 @@ def generate_world(seed, kind=None, radius=0.25):
         kind = KINDS[int(rng.integers(len(KINDS)))]
     if kind not in KINDS:
         raise UserError(f'world kind "{kind}": must be one of {", ".join(KINDS)}')
+    # A layout whose outline comes out touching itself (a door flush with a room's corner,
+    # or two vertices merged by the rounding to mm) is not a valid world: the seed's generator
+    # draws the next layout of the same kind. A layout that is valid the first time is the
+    # one earlier versions wrote for the seed.
+    for attempt in range(20):
+        try:
+            return _layout(rng, seed, kind, radius)
+        except UserError as err:
+            if attempt == 19:
+                raise UserError(f'generate_world({seed}): no valid {kind} layout in 20 draws '
+                                f'({err})') from None
+    raise AssertionError('unreachable')
+
+
+def _layout(rng, seed, kind, radius):
+    """One layout of ``kind`` drawn from ``rng``, checked by ``world_from_dict``."""
     free, rooms = {'rooms': _rooms, 'maze': _maze, 'halls': _halls, 'mixed': _mixed}[kind](rng)
     free = free.simplify(0.0)
     if free.geom_type != 'Polygon':

@@ -359,3 +359,16 @@ def test_world_generator_is_seeded_valid_and_varied(tmp_path):
         world_from_dict(json.loads(p.read_text()), radius=0.25)
     with pytest.raises(UserError, match='--count 0'):
         write_worlds(tmp_path, 0)
+
+
+def test_a_seed_whose_first_layout_is_invalid_still_gives_a_valid_world():
+    """Seed 13602's first maze layout has an outline that touches itself; the generator
+    draws the next layout of the same kind instead of failing the whole batch."""
+    from coverage_pkg import worldgen
+    rng = np.random.default_rng(13602)
+    kind = worldgen.KINDS[int(rng.integers(len(worldgen.KINDS)))]
+    with pytest.raises(UserError, match='not a simple polygon'):
+        worldgen._layout(rng, 13602, kind, 0.25)
+    data = worldgen.generate_world(13602)
+    assert data['name'] == f'gen_{kind}_13602'
+    world_from_dict(data, radius=0.25)
