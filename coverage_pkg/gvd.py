@@ -72,6 +72,36 @@ def cusp_from_ring(xy, ranges, angles, delta, min_angle=math.radians(30.0), max_
     return (float(xy[0] + s[0]), float(xy[1] + s[1]))
 
 
+def meet_from_ring(xy, ranges, angles, max_shift=0.5, max_gap=math.radians(190.0)):
+    """The meet point near ``xy`` from one ring sweep: the point equidistant to the three
+    closest obstacles, or None.
+
+    Same linearisation as :func:`cusp_from_ring`: moving by ``s`` changes the echo along unit
+    bearing ``n_i`` by ``-n_i . s``, so the point where the three closest obstacles are all at
+    one distance ``rho`` solves ``n_i . s + rho = d_i`` (i = 1, 2, 3). The robot does not
+    have to stand on the meet point (a path along a corridor's centre line passes a T
+    junction's meet point 0.2 m off it, where the third obstacle is 0.3 m farther than the
+    other two). Returns ``(x, y, rho)``; None when the three bearings do not surround the
+    point (a gap between bearings wider than ``max_gap``: a half-plane plus the ring's
+    bearing quantisation), the system is ill-posed, or the shift
+    exceeds ``max_shift``."""
+    mins = ring_minima(ranges, angles)
+    if len(mins) < 3:
+        return None
+    three = mins[:3]
+    bearings = np.sort([math.remainder(a, 2 * math.pi) for _, a in three])
+    gaps = np.diff(np.r_[bearings, bearings[0] + 2 * math.pi])
+    if gaps.max() > max_gap:
+        return None
+    a = np.array([[math.cos(b), math.sin(b), 1.0] for _, b in three])
+    if np.linalg.cond(a) > 50.0:
+        return None
+    s = np.linalg.solve(a, np.array([d for d, _ in three]))
+    if not np.all(np.isfinite(s)) or s[2] <= 0 or float(np.hypot(s[0], s[1])) > max_shift:
+        return None
+    return (float(xy[0] + s[0]), float(xy[1] + s[1]), float(s[2]))
+
+
 def gvd_order(ranges, angles, tol, min_separation=math.radians(30.0)):
     """How many obstacles are equidistant (within ``tol``) and closest: the GVD order.
 

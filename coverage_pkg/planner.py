@@ -96,6 +96,7 @@ class PlannerConfig:
     min_vast_area: float = 0.5         # m^2, smaller VR components are sensing slivers
     event_tolerance: float = 0.15      # m, equal closest ranges (GVD order) within this
     critical_angle: float = math.radians(12.0)  # bearing tolerance of the critical point test
+    meet_agree: float = 0.15           # m, two sweeps' meet point solves must agree this well
     critical_col_tol: float = 0.5      # m, a sensed critical point confirms a slice this near
     critical_row_tol: float = 1.0      # m, ... and this far along it from the event's gap
     boundary_cost: float = 0.7         # travel cost of an undone boundary cell (open space: 1)
@@ -191,6 +192,7 @@ class CoveragePlanner:
         self.last = {}                  # last decomposition, for markers and the result
         self.sweeps = 0
         self.min_distance = math.inf
+        self._meet_candidate = None
         self.sensed = {'cusp': [], 'critical': [], 'meet': []}   # (x, y, detail) in odom
         self._closed_cells = []         # centroids of Morse cells reported closed
         self._escape = False
@@ -259,14 +261,33 @@ class CoveragePlanner:
         angles = self.mount + self.pose[2]
         order = gvdmod.gvd_order(ranges, angles, self.cfg.event_tolerance)
         self._sense_cusp(t, prev, dist, prev_pose, order, ranges, angles)
-        if order >= 3 and dist <= self.det and self.goal_kind == 'gvd':
-            self._record(t, 'meet', self.pose[:2], f'GVD order {order} at D = {dist:.2f} m',
-                         spacing=1.0)
+        if self.goal_kind == 'gvd' and dist <= self.det:
+            self._sense_meet(t, ranges, angles, order, dist)
         side = morse.critical_from_ring(ranges, self.mount, self.pose[2],
                                         self.cfg.critical_angle)
         if side and abs(dist - self.det) <= 2.0 * self.cfg.resolution and (
                 self.goal_kind == 'lap' or self._on_boundary()):
             self._sense_critical(t, side)
+
+    def _sense_meet(self, t, ranges, angles, order, dist):
+        """Meet point while tracing a narrow GVD edge: three closest obstacles equidistant.
+        Placed where the three echoes solve to one distance (:func:`gvd.meet_from_ring`,
+        within 0.5 m of the robot), else at the robot when the ring shows GVD order 3."""
+        m = gvdmod.meet_from_ring(self.pose[:2], ranges, angles)
+        if m is not None and m[2] <= self.det:
+            # Two sweeps in a row must agree (within meet_agree): a single solve from a noisy
+            # echo or a cone's edge is not a meet point.
+            prev, self._meet_candidate = self._meet_candidate, m
+            if prev is not None and math.hypot(m[0] - prev[0], m[1] - prev[1]) <= \
+                    self.cfg.meet_agree:
+                xy = (0.5 * (m[0] + prev[0]), 0.5 * (m[1] + prev[1]))
+                self._record(t, 'meet', xy, f'three closest obstacles at {m[2]:.2f} m',
+                             spacing=1.0)
+            return
+        self._meet_candidate = None
+        if order >= 3:
+            self._record(t, 'meet', self.pose[:2], f'GVD order {order} at D = {dist:.2f} m',
+                         spacing=1.0)
 
     def _on_boundary(self):
         """True if the robot is on the boundary D = delta of a vast cell as memory knows it

@@ -141,6 +141,35 @@ def test_morse_cells_of_the_vast_node_are_bounded_by_its_sensed_critical_points(
     assert len(closed) >= 4 and all('sensed at t =' in e[4] for e in closed)
 
 
+# A T of corridors 1.5 m wide: the crossbar y in [0, 1.5], x in [0, 14]; the stem x in
+# [6.25, 7.75] up to y = 8. One narrow cell (D <= 0.94 m everywhere), no vast cell.
+T_CORRIDOR = {'name': 't_corridor',
+              'boundary': [[0, 0], [14, 0], [14, 1.5], [7.75, 1.5], [7.75, 8], [6.25, 8],
+                           [6.25, 1.5], [0, 1.5]],
+              'obstacles': [], 'start': [1.0, 0.75]}
+
+
+def test_the_meet_point_of_a_corridor_junction_is_sensed_where_three_walls_are_equidistant():
+    """The GVD of the T has a meet point at the junction, equidistant to the bottom wall and
+    the stem's two corners: (7, y) with y = sqrt(0.75^2 + (1.5 - y)^2), y = 0.9375 (D there).
+    A robot on the crossbar's centre line (y = 0.75) passes 0.19 m from it, where the third
+    obstacle is 0.31 m farther than the other two. The ring's three closest echoes place it.
+    The other meet points of this GVD are the ends of the corridors (0.75, 0.75),
+    (13.25, 0.75), (7, 7.25); nothing else may be reported as one."""
+    r = run_kinematic(world_from_dict(T_CORRIDOR), PlannerConfig(delta=DELTA), max_time=600)
+    p = r['planner']
+    assert r['state'] == 'done' and r['covered_fraction'] >= 0.99
+    (narrow,) = p.graph.alive('narrow')
+    assert not p.graph.alive('vast')
+    meets = [(x, y) for x, y, _, _ in p.sensed['meet']]
+    junction = (7.0, 0.9375)
+    assert any(math.hypot(x - junction[0], y - junction[1]) <= 0.15 for x, y in meets), meets
+    truth = np.array([junction, (0.75, 0.75), (13.25, 0.75), (7.0, 7.25)])
+    for x, y in meets:
+        assert np.min(np.hypot(truth[:, 0] - x, truth[:, 1] - y)) <= 0.3, (x, y)
+    assert narrow.meet_points and any(e[1] == 'meet' for e in p.events)
+
+
 def test_laps_are_two_delta_apart_on_the_ground_truth_path(runs):
     """Laps are straight runs along the slice direction (|dx| < 5 cm) that cross the vast cell:
     at least 2 delta of y (VR is 6 m tall here), mostly inside VR (true clearance > delta +

@@ -186,6 +186,22 @@ def test_ring_gvd_order_and_cusp_detection_from_range_data():
     assert not gvd.narrow_cusp_crossed(1.9, 1.95, 2.0)
 
 
+def test_meet_point_is_solved_from_three_echoes_off_the_junction():
+    """Three walls (x = 0, y = 0, y = 3): their meet point is (1.5, 1.5). Sweeps up to 0.4 m
+    away (where the third wall is 0.4 m farther than the other two, not equidistant) put it
+    within 0.02 m; a corridor's two walls alone, or a point 1 m away, give none."""
+    walls = np.array([[0.0, 0.0, 0.0, 3.0], [0.0, 0.0, 9.0, 0.0], [0.0, 3.0, 9.0, 3.0]])
+    ang = np.linspace(-math.pi, math.pi, 64, endpoint=False)
+    for xy in [(1.5, 1.5), (1.9, 1.5), (1.7, 1.3)]:
+        x, y, rho = gvd.meet_from_ring(xy, raycast_segments(walls, xy, ang, 5.0), ang)
+        assert math.hypot(x - 1.5, y - 1.5) < 0.02 and abs(rho - 1.5) < 0.02, (xy, x, y)
+    assert gvd.meet_from_ring((2.5, 1.5), raycast_segments(walls, (2.5, 1.5), ang, 5.0),
+                              ang) is None
+    corridor = walls[1:]
+    assert gvd.meet_from_ring((4.0, 1.5), raycast_segments(corridor, (4.0, 1.5), ang, 5.0),
+                              ang) is None
+
+
 def test_cusp_is_located_on_the_bisector_from_one_sweep_off_the_gvd():
     # Concave corner at (0, 10) (walls x = 0 and y = 10): the GVD is the bisector and D = 2
     # on it at (2, 8). A sweep from (2.0, 7.85), 0.15 m off the bisector, sees the walls at
