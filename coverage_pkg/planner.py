@@ -272,22 +272,22 @@ class CoveragePlanner:
     def _sense_meet(self, t, ranges, angles, order, dist):
         """Meet point while tracing a narrow GVD edge: three closest obstacles equidistant.
         Placed where the three echoes solve to one distance (:func:`gvd.meet_from_ring`,
-        within 0.5 m of the robot), else at the robot when the ring shows GVD order 3."""
+        within 0.5 m of the robot), else at the robot when the ring shows GVD order 3. Two
+        sweeps in a row must agree (within ``meet_agree``): a single solve from a noisy echo
+        or a cone's edge is not a meet point."""
         m = gvdmod.meet_from_ring(self.pose[:2], ranges, angles)
         if m is not None and m[2] <= self.det:
-            # Two sweeps in a row must agree (within meet_agree): a single solve from a noisy
-            # echo or a cone's edge is not a meet point.
-            prev, self._meet_candidate = self._meet_candidate, m
-            if prev is not None and math.hypot(m[0] - prev[0], m[1] - prev[1]) <= \
-                    self.cfg.meet_agree:
-                xy = (0.5 * (m[0] + prev[0]), 0.5 * (m[1] + prev[1]))
-                self._record(t, 'meet', xy, f'three closest obstacles at {m[2]:.2f} m',
-                             spacing=1.0)
+            cand = (m[0], m[1], f'three closest obstacles at {m[2]:.2f} m')
+        elif order >= 3:
+            cand = (self.pose[0], self.pose[1], f'GVD order {order} at D = {dist:.2f} m')
+        else:
+            self._meet_candidate = None
             return
-        self._meet_candidate = None
-        if order >= 3:
-            self._record(t, 'meet', self.pose[:2], f'GVD order {order} at D = {dist:.2f} m',
-                         spacing=1.0)
+        prev, self._meet_candidate = self._meet_candidate, cand
+        if prev is not None and math.hypot(cand[0] - prev[0], cand[1] - prev[1]) <= \
+                self.cfg.meet_agree:
+            xy = (0.5 * (cand[0] + prev[0]), 0.5 * (cand[1] + prev[1]))
+            self._record(t, 'meet', xy, cand[2], spacing=1.0)
 
     def _on_boundary(self):
         """True if the robot is on the boundary D = delta of a vast cell as memory knows it
