@@ -96,6 +96,8 @@ class PlannerConfig:
     min_vast_area: float = 0.5         # m^2, smaller VR components are sensing slivers
     event_tolerance: float = 0.15      # m, equal closest ranges (GVD order) within this
     critical_angle: float = math.radians(12.0)  # bearing tolerance of the critical point test
+    jump_band: float = 0.3             # m, |D - delta| within this for the Fig. 10 cusp test
+    jump_angle: float = math.radians(45.0)  # ... and the closest obstacle's bearing jumps this
     meet_agree: float = 0.15           # m, two sweeps' meet point solves must agree this well
     critical_col_tol: float = 0.5      # m, a sensed critical point confirms a slice this near
     critical_row_tol: float = 1.0      # m, ... and this far along it from the event's gap
@@ -193,6 +195,8 @@ class CoveragePlanner:
         self.sweeps = 0
         self.min_distance = math.inf
         self._meet_candidate = None
+        self._near_bearing = None
+        self._last_sweep = None
         self.sensed = {'cusp': [], 'critical': [], 'meet': []}   # (x, y, detail) in odom
         self._closed_cells = []         # centroids of Morse cells reported closed
         self._escape = False
@@ -261,6 +265,7 @@ class CoveragePlanner:
         angles = self.mount + self.pose[2]
         order = gvdmod.gvd_order(ranges, angles, self.cfg.event_tolerance)
         self._sense_cusp(t, prev, dist, prev_pose, order, ranges, angles)
+        self._sense_normal_jump(t, prev, dist, ranges, angles)
         if self.goal_kind == 'gvd' and dist <= self.det:
             self._sense_meet(t, ranges, angles, order, dist)
         side = morse.critical_from_ring(ranges, self.mount, self.pose[2],
@@ -316,9 +321,14 @@ class CoveragePlanner:
         walls), the crossing counts only on the GVD (order 2) and the point is interpolated
         between the two sweeps.
         """
+        last, self._last_sweep = self._last_sweep, (self.pose[:2], ranges, angles)
         if not math.isfinite(prev) or (prev <= self.det) == (dist <= self.det):
             return
+        # The crossing happened between the two sweeps: either may solve (the one after it
+        # can already see the second obstacle more than max_shift beyond delta).
         xy = gvdmod.cusp_from_ring(self.pose[:2], ranges, angles, self.det)
+        if xy is None and last is not None:
+            xy = gvdmod.cusp_from_ring(last[0], last[1], last[2], self.det)
         if xy is None and order < 2:
             return
         if xy is None:
@@ -328,6 +338,29 @@ class CoveragePlanner:
                   prev_pose[1] + f * (self.pose[1] - prev_pose[1]))
         way = 'rose above' if dist > self.det else 'fell below'
         self._record(t, 'cusp', xy, f'D {way} delta on the GVD', spacing=0.5)
+
+    def _sense_normal_jump(self, t, prev, dist, ranges, angles):
+        """Cusp point by Fig. 10: following the boundary at D = delta, the direction to the
+        closest obstacle (the surface normal) jumps from one obstacle to another, where two
+        are at delta. The crossing test of :meth:`_sense_cusp` needs D to cross delta, which
+        a robot that follows the boundary just inside D = delta does not do; a door's cusp
+        point, where the two jambs' delta-circles meet, was then never sensed. Fires when D
+        is within ``jump_band`` of delta on two sweeps in a row and the closest obstacle's
+        bearing moved by at least ``jump_angle``; the point is solved from the two closest
+        echoes as in :func:`gvd.cusp_from_ring` (within 0.5 m)."""
+        mins = gvdmod.ring_minima(ranges, angles)
+        bearing = mins[0][1] if mins else None
+        last, self._near_bearing = self._near_bearing, bearing
+        band = self.cfg.jump_band
+        if last is None or bearing is None or not math.isfinite(prev) or \
+                abs(dist - self.det) > band or abs(prev - self.det) > band:
+            return
+        if abs(math.remainder(bearing - last, 2 * math.pi)) < self.cfg.jump_angle:
+            return
+        xy = gvdmod.cusp_from_ring(self.pose[:2], ranges, angles, self.det)
+        if xy is not None:
+            self._record(t, 'cusp', xy, 'closest obstacle jumped at D = delta (Fig. 10)',
+                         spacing=0.5)
 
     def _sense_critical(self, t, side):
         """Critical point of h = x: the closest obstacle is along +-x (normal parallel to

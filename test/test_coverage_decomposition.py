@@ -97,6 +97,10 @@ def test_cusp_points_are_sensed_where_the_gvd_has_d_equal_delta(runs, name):
     truth = np.array(CUSPS[name], dtype=float)
     for x, y in sensed:
         assert np.min(np.hypot(truth[:, 0] - x, truth[:, 1] - y)) <= 0.15, (x, y)
+    # and every cusp point of the world is sensed (Theorem 1 needs the robot to find them all)
+    got = np.array(sensed)
+    for x, y in truth:
+        assert np.min(np.hypot(got[:, 0] - x, got[:, 1] - y)) <= 0.15, ('missed', x, y)
     kinds = {e[1] for e in p.events}
     assert {'cusp', 'node_created', 'start', 'done'} <= kinds
 
