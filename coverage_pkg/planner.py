@@ -628,7 +628,8 @@ class CoveragePlanner:
         nmap = self.graph.update('narrow', nl, d['to_cell'], d['to_world'], res, seeds)
         for nid in sorted(set(self.graph.nodes) - before):
             node = self.graph.nodes[nid]
-            self._event(t, 'node_created', f'{node.kind} node {nid} (CreateNode)')
+            self._event(t, 'node_created', f'{node.kind} node {nid} (CreateNode '
+                                           f'{self._created_at(node.anchor, seeds)})')
         node_of = np.full(vl.shape, -1, dtype=np.int64)
         for lab, nid in vmap.items():
             node_of[vl == lab] = nid
@@ -638,6 +639,21 @@ class CoveragePlanner:
         self._attach_critical_points(d, vl, vmap)
         self._attach_meet_points(nl, nmap, d)
         return vmap, nmap, node_of
+
+    def _created_at(self, anchor, seeds):
+        """Where a new node came from, for its ``node_created`` event: the robot's position
+        (the start, or a cell the robot stands in), a sensed cusp point, or a cell that
+        memory holds before any of its cusp points was sensed (the sonar reaches 5 m; the
+        graph then links it through a cusp predicted on the memory's GVD)."""
+        if tuple(anchor) == tuple(seeds[0]):
+            return 'at the robot'
+        for x, y, _, _ in self.sensed['cusp']:
+            if (x, y) == tuple(anchor):
+                t = next((e[0] for e in self.events if e[1] == 'cusp' and
+                          e[2:4] == (round(x, 3), round(y, 3))), None)
+                return f'at the cusp point sensed at t = {t:.2f} s' if t is not None else \
+                    'at a sensed cusp point'
+        return 'for a cell sensed in memory before its cusp point'
 
     def _link_cells(self, d, vl, nl, vmap, nmap):
         """One graph edge per touching vast/narrow pair, with its cusp points: the sensed ones
