@@ -50,14 +50,16 @@ def ring_minima(ranges, angles, min_separation=math.radians(30.0)):
     return kept
 
 
-def cusp_from_ring(xy, ranges, angles, delta, min_angle=math.radians(30.0), max_shift=0.5):
+def cusp_from_ring(xy, ranges, angles, delta, min_angle=math.radians(30.0), max_shift=0.5,
+                   other_tol=0.1):
     """The cusp point near ``xy`` from one ring sweep: the point where the two closest
     obstacles are both at ``delta`` (on the GVD, D = delta), with the obstacles locally flat.
 
     With the closest echoes d1, d2 along unit bearings n1, n2, moving by s changes them by
     -n_i . s, so s solves n1 . s = d1 - delta, n2 . s = d2 - delta. Returns None where that is
-    ill-posed (bearings within ``min_angle`` of parallel or opposite) or the shift exceeds
-    ``max_shift`` (then the two echoes are not the two sides of one cusp)."""
+    ill-posed (bearings within ``min_angle`` of parallel or opposite), the shift exceeds
+    ``max_shift`` (then the two echoes are not the two sides of one cusp), or a third echo
+    would be nearer than ``delta - other_tol`` at the point."""
     mins = ring_minima(ranges, angles)
     if len(mins) < 2:
         return None
@@ -69,6 +71,11 @@ def cusp_from_ring(xy, ranges, angles, delta, min_angle=math.radians(30.0), max_
     s = np.linalg.solve(n, np.array([d1 - delta, d2 - delta]))
     if not np.all(np.isfinite(s)) or float(np.hypot(*s)) > max_shift:
         return None
+    # At a cusp point the two are the closest obstacles: no other echo may come nearer than
+    # delta there (less a ring's worth of error), or the point is not on their GVD edge.
+    for d, a in mins[2:]:
+        if d - (math.cos(a) * s[0] + math.sin(a) * s[1]) < delta - other_tol:
+            return None
     return (float(xy[0] + s[0]), float(xy[1] + s[1]))
 
 

@@ -211,6 +211,11 @@ def test_cusp_is_located_on_the_bisector_from_one_sweep_off_the_gvd():
     ranges = raycast_segments(walls, (2.0, 7.85), ang, 5.0)
     x, y = gvd.cusp_from_ring((2.0, 7.85), ranges, ang, 2.0)
     assert math.hypot(x - 2.0, y - 8.0) < 0.01
+    # A third wall 1.55 m below that point: there the two walls are not the closest
+    # obstacles, so the point is not on their GVD edge and no cusp is reported.
+    third = np.vstack([walls, [[1.0, 6.3, 9.0, 6.3]]])
+    assert gvd.cusp_from_ring((2.0, 7.85), raycast_segments(third, (2.0, 7.85), ang, 5.0),
+                              ang, 2.0) is None
     # A corridor's two walls face each other: no point of the two is fixed this way.
     corridor = np.array([[-9.0, 0.0, 9.0, 0.0], [-9.0, 3.8, 9.0, 3.8]])
     assert gvd.cusp_from_ring((0.0, 1.9), raycast_segments(corridor, (0.0, 1.9), ang, 5.0),
