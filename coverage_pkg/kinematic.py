@@ -82,12 +82,14 @@ def run_kinematic(world, config=None, ring=None, dt=0.05, sweep_period=0.1, max_
             'accumulator': acc, 'update_times': update_times}
 
 
-def ratio_report(paths, config=None, baseline=False, oracle=False, max_time=3000.0, out=print):
+def ratio_report(paths, config=None, baseline=False, oracle=False, max_time=3000.0, out=print,
+                 events=False):
     """Cover every world file in ``paths`` in the ROS-free loop and print, per world, the
     covered fraction of CVS, the path, the lower bound |CVS|/(2 delta) and their ratio (and,
     with ``baseline``, the robot-size baseline's path and the extended/baseline ratio; with
-    ``oracle``, the full-knowledge route of :mod:`coverage_pkg.oracle` and planner/oracle);
-    then the mean and median ratio. Returns the rows."""
+    ``oracle``, the full-knowledge route of :mod:`coverage_pkg.oracle` and planner/oracle;
+    with ``events``, how many sensed cusp and meet points :mod:`coverage_pkg.event_check`
+    finds where the true world has them); then the mean and median ratio. Returns the rows."""
     from coverage_pkg.baseline import robot_size_config
     from coverage_pkg.world import load_world
     rows = []
@@ -115,12 +117,24 @@ def ratio_report(paths, config=None, baseline=False, oracle=False, max_time=3000
             line += (f"; oracle {o['path_length']:.1f} m ({100 * o['covered_fraction']:.2f} %), "
                      f"ratio {o['path_length'] / r['lower_bound']:.2f}, planner/oracle "
                      f"{r['path_length'] / o['path_length']:.2f}")
+        if events:
+            from coverage_pkg.event_check import check_events
+            cfg = config or PlannerConfig()
+            ev = check_events(world, r['planner'].events, cfg.detector_range())
+            row.update(cusps=ev['cusp'], meets=ev['meet'])
+            line += (f"; cusps verified {ev['cusp'][0]}/{ev['cusp'][1]}, meets verified "
+                     f"{ev['meet'][0]}/{ev['meet'][1]}")
         out(line)
         rows.append(row)
     if rows:
         ratios = [r['ratio'] for r in rows]
         out(f'{len(rows)} worlds: mean ratio {np.mean(ratios):.2f}, median '
             f'{np.median(ratios):.2f}, min covered {100 * min(r["covered"] for r in rows):.2f} %')
+        if events:
+            for kind, key in (('cusp', 'cusps'), ('meet', 'meets')):
+                ok, n = (sum(r[key][i] for r in rows) for i in (0, 1))
+                out(f'{kind} points: {ok} of {n} sensed are where the true world has one '
+                    f'({100 * ok / n if n else 0:.0f} %)')
         if oracle:
             o = [r['oracle_m'] / r['bound_m'] for r in rows]
             out(f'oracle (full knowledge): mean ratio {np.mean(o):.2f}, median '

@@ -258,6 +258,9 @@ def register(subparsers):
     ratio.add_argument('--oracle', action='store_true',
                        help='also plan the full-knowledge route (coverage_pkg/oracle.py, reads '
                        'the true world) and print its ratio and planner/oracle')
+    ratio.add_argument('--events', action='store_true',
+                       help='also check every sensed cusp and meet point against the true '
+                       'world (coverage_pkg/event_check.py, fine ray casting; evaluation only)')
     ratio.add_argument('--max-sim-time', type=float, default=3000.0, help='per world (s)')
     ratio.set_defaults(func=_ratio)
 
@@ -267,7 +270,8 @@ def _ratio(args):
     paths = sorted(Path(args.worlds).glob('*.json'))
     if not paths:
         raise UserError(f'--worlds {args.worlds}: no .json world files there')
-    ratio_report(paths, baseline=args.baseline, oracle=args.oracle, max_time=args.max_sim_time)
+    ratio_report(paths, baseline=args.baseline, oracle=args.oracle, max_time=args.max_sim_time,
+                 events=args.events)
     return 0
 
 
