@@ -33,6 +33,11 @@ def render_coverage(path_png, world, path, graph_dict=None, layers=None, uncover
             res = (ext[1] - ext[0]) / layers['gvd'].shape[1]
             ax.plot(ext[0] + (gx + 0.5) * res, ext[2] + (gy + 0.5) * res, ',', color='tab:blue',
                     alpha=0.5, zorder=1)
+        my, mx = np.nonzero(layers.get('morse', np.zeros((0, 0), bool)))
+        if len(my):
+            res = (ext[1] - ext[0]) / layers['vast'].shape[1]
+            ax.plot(ext[0] + mx * res, ext[2] + (my + 0.5) * res, '|', color='indigo', ms=4,
+                    label='Morse cell boundaries', zorder=2)
     if uncovered is not None and len(uncovered):
         ax.plot(uncovered[:, 0], uncovered[:, 1], 's', ms=1.5, color='red', alpha=0.6,
                 label='CVS not seen', zorder=2)
@@ -58,13 +63,16 @@ def render_coverage(path_png, world, path, graph_dict=None, layers=None, uncover
                         label='cusp points' if first else None)
                 first = False
                 if a and b:
-                    ax.plot([a['centroid'][0], cp[0], b['centroid'][0]],
-                            [a['centroid'][1], cp[1], b['centroid'][1]], ':', color='purple',
+                    pa, pb = _where(a), _where(b)
+                    ax.plot([pa[0], cp[0], pb[0]], [pa[1], cp[1], pb[1]], ':', color='purple',
                             lw=1, zorder=6)
+        # Each node is drawn at a point of its cell nearest its centroid: the centroid of a
+        # ring-shaped cell (a band around an obstacle, the vast ring around it) lies outside
+        # the cell, and several such centroids fall on one point.
         for n in nodes.values():
             style = dict(boxstyle='round', fc='0.7' if n['type'] == 'vast' else 'white',
                          ec='purple')
-            ax.text(n['centroid'][0], n['centroid'][1], f"{n['type'][0].upper()}{n['id']}",
+            ax.text(*_where(n), f"{n['type'][0].upper()}{n['id']}",
                     ha='center', va='center', fontsize=8, bbox=style, zorder=7)
     ax.set_xlim(xmin - 0.5, xmax + 0.5)
     ax.set_ylim(ymin - 0.5, ymax + 0.5)
@@ -74,6 +82,11 @@ def render_coverage(path_png, world, path, graph_dict=None, layers=None, uncover
     fig.tight_layout()
     fig.savefig(path_png, dpi=110)
     plt.close(fig)
+
+
+def _where(node):
+    """Where a node of the graph dict is drawn (older results have no ``label_point``)."""
+    return tuple(node.get('label_point', node['centroid'])[:2])
 
 
 def planner_layers(planner):
@@ -86,5 +99,12 @@ def planner_layers(planner):
     x0 = g.origin[0] + cs.start * g.res
     y0 = g.origin[1] + rs.start * g.res
     ny, nx = d['vast'].shape
+    # Morse cell boundaries: where two neighbouring cells of the slice direction belong to
+    # different Morse cells (the slices through the sensed critical points).
+    reeb = d.get('reeb')
+    morse = np.zeros_like(d['vast'])
+    if reeb is not None:
+        cut = (reeb[:, 1:] != reeb[:, :-1]) & (reeb[:, 1:] > 0) & (reeb[:, :-1] > 0)
+        morse[:, 1:] |= cut
     return {'vast': d['vast'], 'narrow': d['narrow'], 'gvd': d['gvd'] & d['reach'],
-            'extent': (x0, x0 + nx * g.res, y0, y0 + ny * g.res)}
+            'morse': morse, 'extent': (x0, x0 + nx * g.res, y0, y0 + ny * g.res)}

@@ -29,6 +29,7 @@ class GraphNode:
     alive: bool = True             # False once merged into another node or no longer sensed
     merged_into: int = -1
     centroid: tuple = (0.0, 0.0)
+    label_point: tuple = (0.0, 0.0)  # a point of the cell nearest its centroid
     area: float = 0.0
     reeb_points: list = field(default_factory=list)    # vast: [(x, y, kind)] critical points
     reeb_edges: list = field(default_factory=list)     # vast: Morse cells as (i, j) point pairs
@@ -116,6 +117,12 @@ class HierarchicalGraph:
                 keep = self.create_node(kind, anchor)
             c = to_world(np.array([cents[lab - 1][0]]), np.array([cents[lab - 1][1]]))[0]
             keep.centroid = (float(c[0]), float(c[1]))
+            # A point of the cell itself, nearest its centroid (the centroid of a ring-shaped
+            # cell lies outside it): where pictures and markers put the node.
+            rr, cc = np.nonzero(labels == lab)
+            k = int(np.argmin((rr - cents[lab - 1][0]) ** 2 + (cc - cents[lab - 1][1]) ** 2))
+            q = to_world(rr[k:k + 1], cc[k:k + 1])[0]
+            keep.label_point = (float(q[0]), float(q[1]))
             keep.area = float(sizes[lab - 1]) * resolution ** 2
             mapping[lab] = keep.id
         return mapping
@@ -242,6 +249,7 @@ class HierarchicalGraph:
         return {
             'nodes': [{'id': n.id, 'type': n.kind, 'kind': n.kind, 'covered': n.covered,
                        'anchor': list(n.anchor), 'centroid': list(n.centroid),
+                       'label_point': list(n.label_point),
                        'area_m2': round(n.area, 3), 'alive': n.alive,
                        'merged_into': n.merged_into,
                        'critical_points': [list(p) for p in n.reeb_points],

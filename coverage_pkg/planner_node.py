@@ -257,7 +257,7 @@ class CoveragePlannerNode(ParamotionNode):
                 cs = p.graph.cusp_points(v, n)
                 if a.alive and b.alive:
                     for c in cs:
-                        for u, w in ((a.centroid, c), (c, b.centroid)):
+                        for u, w in ((a.label_point, c), (c, b.label_point)):
                             m.points += [Point(x=u[0], y=u[1], z=0.2),
                                          Point(x=w[0], y=w[1], z=0.2)]
             for i, n in enumerate(nodes):
@@ -265,7 +265,7 @@ class CoveragePlannerNode(ParamotionNode):
                            (0.3, 0.3, 0.3, 1.0) if n.kind == 'vast' else (0.2, 0.4, 1.0, 1.0),
                            0.5, mid=i)
                 t.pose.position.x, t.pose.position.y, t.pose.position.z = (
-                    n.centroid[0], n.centroid[1], 0.5)
+                    n.label_point[0], n.label_point[1], 0.5)   # a point of the cell
                 t.text = f"{'V' if n.kind == 'vast' else 'N'}{n.id}" + (
                     '' if n.covered else '*')
         m = marker('path', Marker.LINE_STRIP, (0.0, 0.7, 0.0, 1.0), 0.05)

@@ -138,6 +138,8 @@ def _shift_graph(g, dx, dy):
     for n in g['nodes']:
         n['anchor'] = sh(n['anchor'])
         n['centroid'] = sh(n['centroid'])
+        if 'label_point' in n:
+            n['label_point'] = sh(n['label_point'])
         n['critical_points'] = [sh(c) for c in n['critical_points']]
         n['meet_points'] = [sh(c) for c in n['meet_points']]
     for e in g['edges']:
