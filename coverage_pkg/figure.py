@@ -99,12 +99,8 @@ def planner_layers(planner):
     x0 = g.origin[0] + cs.start * g.res
     y0 = g.origin[1] + rs.start * g.res
     ny, nx = d['vast'].shape
-    # Morse cell boundaries: where two neighbouring cells of the slice direction belong to
-    # different Morse cells (the slices through the sensed critical points).
+    from coverage_pkg.morse import cell_boundaries
     reeb = d.get('reeb')
-    morse = np.zeros_like(d['vast'])
-    if reeb is not None:
-        cut = (reeb[:, 1:] != reeb[:, :-1]) & (reeb[:, 1:] > 0) & (reeb[:, :-1] > 0)
-        morse[:, 1:] |= cut
+    morse = cell_boundaries(reeb) if reeb is not None else np.zeros_like(d['vast'])
     return {'vast': d['vast'], 'narrow': d['narrow'], 'gvd': d['gvd'] & d['reach'],
             'morse': morse, 'extent': (x0, x0 + nx * g.res, y0, y0 + ny * g.res)}

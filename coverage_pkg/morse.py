@@ -258,6 +258,14 @@ def sensed_morse_cells(mask, sensed, col_tol, row_tol, min_span=2):
     return MorseCells(merged, edges, confirmed, ignored)
 
 
+def cell_boundaries(labels):
+    """Cells where the slice direction (x) passes from one Morse cell to another: the slices
+    through the sensed critical points, for pictures and markers."""
+    out = np.zeros(labels.shape, dtype=bool)
+    out[:, 1:] = (labels[:, 1:] != labels[:, :-1]) & (labels[:, 1:] > 0) & (labels[:, :-1] > 0)
+    return out
+
+
 def lap_columns(nx, origin_x, resolution, x_ref, spacing):
     """Boolean per grid column: True on the lapping slices ``x = x_ref + k * spacing``.
 

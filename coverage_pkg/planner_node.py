@@ -18,7 +18,8 @@ Outputs:
   current node, uncovered nodes, the last event;
 * ``/coverage/graph`` (std_msgs/String, latched): the hierarchical decomposition graph as JSON;
 * ``/coverage/markers`` (visualization_msgs/MarkerArray, frame ``odom``): vast and narrow cells,
-  GVD, critical, cusp and meet points, the graph, the path so far and the planned path.
+  GVD, Morse cell boundaries, critical, cusp and meet points, the graph, the path so far and
+  the planned path.
 """
 import json
 import math
@@ -33,6 +34,7 @@ from std_msgs.msg import ColorRGBA, String
 from visualization_msgs.msg import Marker, MarkerArray
 
 from coverage_pkg.baseline import robot_size_config
+from coverage_pkg.morse import cell_boundaries
 from coverage_pkg.planner import PlannerConfig, PlannerDriver
 from coverage_pkg.sonar import yaw_of
 from paramotion.errors import UserError
@@ -240,6 +242,9 @@ class CoveragePlannerNode(ParamotionNode):
                 m.points = [Point(x=float(x), y=float(y)) for x, y in d['to_world'](rr, cc)]
             m = marker('gvd', Marker.POINTS, (0.1, 0.3, 1.0, 1.0), p.grid.res)
             rr, cc = np.nonzero(d['gvd'])
+            m.points = [Point(x=float(x), y=float(y), z=0.05) for x, y in d['to_world'](rr, cc)]
+            m = marker('morse_boundaries', Marker.POINTS, (0.3, 0.0, 0.5, 1.0), p.grid.res)
+            rr, cc = np.nonzero(cell_boundaries(d['reeb']))
             m.points = [Point(x=float(x), y=float(y), z=0.05) for x, y in d['to_world'](rr, cc)]
             nodes = [n for n in p.graph.alive()]
             m = marker('critical_points', Marker.SPHERE_LIST, (0.0, 0.0, 0.0, 1.0), 0.25)
