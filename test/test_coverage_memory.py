@@ -93,12 +93,13 @@ def test_result_graph_is_shifted_whole_into_the_map_frame():
     boundary points too, not only the nodes and the cusp list."""
     from coverage_pkg.scenario import _shift_graph
     g = {'nodes': [{'anchor': [0, 0], 'centroid': [1, 1], 'critical_points': [[2, 2, 'opens']],
-                    'meet_points': [[3, 3]]}],
+                    'meet_points': [[3, 3]], 'label_point': [7, 7]}],
          'edges': [{'cusp_points': [[4, 4]], 'sensed_cusp_points': [[4, 4]],
                     'shared_boundary_point': [5, 5]},
                    {'cusp_points': [], 'sensed_cusp_points': [], 'shared_boundary_point': None}]}
     out = _shift_graph(g, 1.0, -1.0)
     assert out['nodes'][0]['critical_points'] == [[3.0, 1.0, 'opens']]
+    assert out['nodes'][0]['label_point'] == [8.0, 6.0]
     assert out['edges'][0]['sensed_cusp_points'] == [[5.0, 3.0]]
     assert out['edges'][0]['shared_boundary_point'] == [6.0, 4.0]
     assert out['edges'][1]['shared_boundary_point'] is None
