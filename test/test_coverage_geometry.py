@@ -366,6 +366,28 @@ def test_hierarchical_graph_keeps_identity_merges_and_finds_uncovered_nodes():
     assert {x['type'] for x in d['nodes']} == {'vast', 'narrow'} and d['edges']
 
 
+def test_a_ring_shaped_cell_is_drawn_at_a_point_of_its_own():
+    """The centroid of a band around an obstacle lies in the obstacle; the node's
+    ``label_point`` (pictures, markers) is a cell of the band nearest it."""
+    from coverage_pkg.hierarchical_graph import HierarchicalGraph
+    g = HierarchicalGraph()
+    ring = np.zeros((11, 11), dtype=np.int32)
+    ring[1:10, 1:10] = 1
+    ring[3:8, 3:8] = 0
+
+    def to_cell(x, y):
+        return (int(y), int(x)) if 0 <= x < 11 and 0 <= y < 11 else None
+
+    def to_world(rows, cols):
+        return np.stack([np.asarray(cols) + 0.5, np.asarray(rows) + 0.5], axis=-1)
+    (nid,) = g.update('narrow', ring, to_cell, to_world, 1.0, seeds=[(1.5, 1.5)]).values()
+    node = g.nodes[nid]
+    assert to_cell(*node.centroid) == (5, 5) and ring[5, 5] == 0
+    r, c = to_cell(*node.label_point)
+    assert ring[r, c] == 1 and abs(r - 5) + abs(c - 5) == 3
+    assert g.to_dict()['nodes'][0]['label_point'] == list(node.label_point)
+
+
 def test_world_generator_is_seeded_valid_and_varied(tmp_path):
     """coverage_pkg.worldgen: same seed, same world; every world passes the world loader with
     the robot's clearance at the start; all four layouts occur; bad count is one line."""
