@@ -649,10 +649,7 @@ class CoveragePlanner:
             return 'at the robot'
         for x, y, _, _ in self.sensed['cusp']:
             if (x, y) == tuple(anchor):
-                t = next((e[0] for e in self.events if e[1] == 'cusp' and
-                          e[2:4] == (round(x, 3), round(y, 3))), None)
-                return f'at the cusp point sensed at t = {t:.2f} s' if t is not None else \
-                    'at a sensed cusp point'
+                return 'at ' + self._sensed_name('cusp', x, y)
         return 'for a cell sensed in memory before its cusp point'
 
     def _link_cells(self, d, vl, nl, vmap, nmap):
@@ -885,15 +882,18 @@ class CoveragePlanner:
                                 f'closed at {self._crit_name(b)}'))
 
     def _crit_name(self, k):
-        """A sensed critical point for an event's text: named by the sim time of its
-        ``critical`` event (the text cannot carry coordinates: events move into the map
-        frame, their text does not)."""
+        """Sensed critical point ``k`` for an event's text, or 'no sensed critical point'."""
         if k < 0:
             return 'no sensed critical point'
-        x, y = (round(v, 3) for v in self.sensed['critical'][k][:2])
-        t = next((e[0] for e in self.events if e[1] == 'critical' and e[2:4] == (x, y)), None)
-        return f'the critical point sensed at t = {t:.2f} s' if t is not None else \
-            'a sensed critical point'
+        return self._sensed_name('critical', *self.sensed['critical'][k][:2])
+
+    def _sensed_name(self, kind, x, y):
+        """A sensed point for an event's text, named by the sim time of its event (the text
+        cannot carry coordinates: events move into the map frame, their text does not)."""
+        xy = (round(x, 3), round(y, 3))
+        t = next((e[0] for e in self.events if e[1] == kind and e[2:4] == xy), None)
+        return f'the {kind} point sensed at t = {t:.2f} s' if t is not None else \
+            f'a sensed {kind} point'
 
     def _travel_costs(self, d):
         """Geodesic cost from the robot through sensed FCS_r (higher near obstacles, so that
