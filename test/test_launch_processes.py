@@ -33,7 +33,9 @@ def test_coverage_graph_across_processes_covers_more_and_more(tmp_path):
         first = fractions[-1][1]
         assert w.spin_until(lambda: fractions[-1][1] >= first + 0.03, 45, launch), (
             fractions[-5:], launch.output()[-3000:])
-        assert w.sim_time > 0.0
+        # /clock comes from another process than the fractions, discovered on its own (about
+        # 2 s): the covered fraction can rise before the first /clock reaches the watcher.
+        assert w.spin_until(lambda: w.sim_time > 0.0, 45, launch), launch.output()[-3000:]
         out = _check_clean_stop(launch)
     for label in ('coverage_sim-1', 'coverage_sonar-2', 'coverage_planner-3',
                   'coverage_monitor-4'):
