@@ -20,9 +20,9 @@ from cable_robot_pkg.fast.isolation import (
     schedule_predictor,
 )
 from cable_robot_pkg.fast.pid import PID, WinchController
-from cable_robot_pkg.fast.rotations import matrix_from_rotvec, rotvec_from_matrix
 from cable_robot_pkg.fast.wind import WindModel, spectrum, synthesize
 from paramotion.gough_stewart import forward_kinematics, inverse_kinematics
+from paramotion.rotations import matrix_from_rotvec, rotvec_from_matrix
 
 
 @pytest.fixture(scope='module')

@@ -62,13 +62,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cable_robot_pkg.fast.rotations import matrix_from_rotvec, rotvec_from_matrix
 from paramotion.gough_stewart import (
     SingularPoseError,
     UnreachablePoseError,
     forward_kinematics,
     inverse_kinematics,
 )
+from paramotion.rotations import matrix_from_rotvec, rotvec_from_matrix
 
 
 def _transition(dt):

@@ -22,9 +22,9 @@ import numpy as np
 from geometry_msgs.msg import PoseStamped
 
 from cable_robot_pkg.fast.ros_messages import TOPICS, pose_from_msg, pose_msg, stamp_seconds
-from cable_robot_pkg.fast.rotations import matrix_from_rotvec
 from paramotion.node import Param, ParamotionNode, run_node
 from paramotion.qos import SENSOR_QOS, STATE_QOS
+from paramotion.rotations import matrix_from_rotvec
 
 BODIES = (('trolley', 'truth_trolley', 'tracker_trolley'),
           ('upper_platform', 'truth_upper', 'tracker_upper'),

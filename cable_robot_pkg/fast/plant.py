@@ -24,8 +24,8 @@ import numpy as np
 import pybullet
 
 from cable_robot_pkg.fast.focal_surface import hinge_rotation
-from cable_robot_pkg.fast.rotations import quat_from_matrix
 from paramotion.gough_stewart import inverse_kinematics
+from paramotion.rotations import quat_from_matrix
 
 _EYE_Q = [0.0, 0.0, 0.0, 1.0]
 

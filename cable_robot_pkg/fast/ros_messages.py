@@ -10,8 +10,8 @@ from geometry_msgs.msg import PoseStamped
 from sensor_msgs.msg import JointState
 
 from cable_robot_pkg.fast.configuration import DEFAULT_CONFIG, load_config
-from cable_robot_pkg.fast.rotations import matrix_from_quat, quat_from_matrix
 from paramotion.errors import UserError
+from paramotion.rotations import matrix_from_quat, quat_from_matrix
 
 TOPICS = {
     'truth_trolley': '/fast/ground_truth/trolley',

@@ -1,7 +1,13 @@
-"""Small, fast rotation helpers for single poses (scalar math; no per-call library overhead).
+"""The project's one rotations module: quaternions, rotation vectors, yaw.
 
-Used in the 200 Hz loops, where ``scipy.spatial.transform.Rotation`` costs more in call
-overhead than the arithmetic. Quaternions here are ROS order (x, y, z, w).
+**Quaternion order: ROS order (x, y, z, w)** everywhere in this module, as in
+``geometry_msgs/Quaternion`` and PyBullet. The only other order in the project is the Euler
+parameters (w, x, y, z) of Haug's formulation inside :mod:`paramotion.gough_stewart`, which the
+Gough-Stewart equations are written in; :func:`xyzw_from_wxyz` and :func:`wxyz_from_xyzw`
+convert between the two.
+
+The single-pose helpers are scalar math (no per-call library overhead), for the 200 Hz loops
+where ``scipy.spatial.transform.Rotation`` costs more in call overhead than the arithmetic.
 """
 import math
 
@@ -66,3 +72,33 @@ def matrix_from_quat(q):
         [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
         [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
         [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+def xyzw_from_wxyz(q):
+    """ROS-order (x, y, z, w) quaternion of Euler parameters (w, x, y, z); works on (..., 4)."""
+    q = np.asarray(q, dtype=float)
+    return np.concatenate([q[..., 1:], q[..., :1]], axis=-1)
+
+
+def wxyz_from_xyzw(q):
+    """Euler parameters (w, x, y, z) of a ROS-order (x, y, z, w) quaternion; works on (..., 4)."""
+    q = np.asarray(q, dtype=float)
+    return np.concatenate([q[..., 3:], q[..., :3]], axis=-1)
+
+
+def quat_from_yaw(yaw):
+    """(x, y, z, w) quaternion of a rotation by ``yaw`` radians about +z (REP 103)."""
+    return (0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0))
+
+
+def yaw_from_quat(q):
+    """Yaw (rad) about +z of an (x, y, z, w) quaternion (normalised first).
+
+    Raises ValueError for a zero or non-finite quaternion.
+    """
+    x, y, z, w = (float(c) for c in q)
+    n = math.sqrt(x * x + y * y + z * z + w * w)
+    if not math.isfinite(n) or n < 1e-12:
+        raise ValueError(f'quaternion {[x, y, z, w]} is zero or not finite')
+    x, y, z, w = x / n, y / n, z / n, w / n
+    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
