@@ -101,7 +101,11 @@ def run_tasks(fn, cases, scheduler=None, workers=None, progress=True, serial=Fal
                 results.append(private_call(fn, case))
                 bar.update(1)
         return results
-    from dask.distributed import Client, LocalCluster, as_completed
+    try:
+        from dask.distributed import Client, LocalCluster, as_completed
+    except ImportError:
+        raise UserError("Dask is not installed: pip install 'paramotion[sweeps]' (or "
+                        'requirements.txt), or run the sweep with --serial') from None
 
     cluster = None
     if scheduler is None:

@@ -68,6 +68,22 @@ def test_failing_case_raises_and_bad_options_refused():
     assert run_tasks(_square_slowly, [], progress=False) == []
 
 
+def test_without_dask_a_sweep_says_how_to_get_it_and_serial_still_runs(monkeypatch):
+    # dask is the optional extra 'sweeps': a missing install is one clear line, not a traceback.
+    import builtins
+    real_import = builtins.__import__
+
+    def no_dask(name, *args, **kwargs):
+        if name == 'dask' or name.startswith('dask.'):
+            raise ImportError(f'No module named {name!r}')
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, '__import__', no_dask)
+    with pytest.raises(UserError, match=r'paramotion\[sweeps\].*--serial'):
+        run_tasks(_triple, [1, 2], workers=2, progress=False)
+    assert run_tasks(_triple, [1, 2], serial=True, progress=False) == [3, 6]
+
+
 def test_each_case_has_its_own_ros_domain():
     # conftest sets ROS_DOMAIN_ID with discovery on: the runner must still isolate the cases.
     results = run_tasks(_ros_names, ['a', 'b'], workers=2, progress=False)
