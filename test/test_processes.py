@@ -1,6 +1,10 @@
 """The same smoke nodes, each in its own process, talking over DDS on a free-running sim."""
+import pytest
+
 from paramotion.bag.reader import bag_info
 from paramotion.smoke.scenario import TOPICS, run_processes
+
+pytestmark = pytest.mark.slow  # several processes over DDS
 
 
 def test_smoke_graph_across_processes(tmp_path):

@@ -9,6 +9,8 @@ from paramotion.cli import main
 from paramotion.errors import UserError
 from paramotion.sweep import chunked, run_tasks
 
+pytestmark = pytest.mark.slow  # local Dask clusters of worker processes
+
 
 def _square_slowly(case):
     # Later cases finish first, so case order must come from the runner, not completion order.
