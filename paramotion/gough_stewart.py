@@ -23,6 +23,8 @@ platform frame's position (3,) and rotation matrix (3, 3) in the base frame. Uni
 Everything is numpy only (no rclpy) so that it can be unit-tested and reused alone. Speed:
 ``python -m climber_pkg.fk_benchmark`` prints solves per second and iteration counts.
 """
+from __future__ import annotations
+
 import math
 import os
 import threading
@@ -31,6 +33,7 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.linalg.lapack import dgesdd as _dgesdd
 from scipy.linalg.lapack import dgesv as _dgesv
 
@@ -90,8 +93,9 @@ class GoughStewartGeometry:
         object.__setattr__(self, 'leg_max', float(self.leg_max))
 
     @classmethod
-    def from_rings(cls, base_radius, platform_radius, base_half_angle, platform_half_angle,
-                   leg_min, leg_max):
+    def from_rings(cls, base_radius: float, platform_radius: float, base_half_angle: float,
+                   platform_half_angle: float, leg_min: float,
+                   leg_max: float) -> GoughStewartGeometry:
         """Semi-regular hexagons: joints in pairs at ``k * 120 deg +- half_angle``.
 
         Platform pairs are rotated by 60 deg, and leg i joins base joint i to the platform
@@ -114,7 +118,7 @@ class GoughStewartGeometry:
         return cls(base, plat, leg_min, leg_max)
 
     @property
-    def characteristic_length(self):
+    def characteristic_length(self) -> float:
         """Mean platform-anchor radius, used to homogenise the Jacobian's moment columns."""
         return float(np.mean(np.linalg.norm(self.platform_anchors, axis=1)))
 
@@ -153,7 +157,7 @@ class BatchFKResult:
 # Rotations and Euler parameters
 # --------------------------------------------------------------------------------------------
 
-def matrix_from_quaternion(e, normalize=True):
+def matrix_from_quaternion(e: ArrayLike, normalize: bool = True) -> np.ndarray:
     """Rotation matrix from Euler parameters ``(e0, e1, e2, e3)`` = (w, x, y, z), vectorised.
 
     ``A = (2 e0^2 - 1) I + 2 (e e^T + e0 e~)`` (Haug 1989; paper section IV-E step 3). The input
@@ -177,7 +181,7 @@ def matrix_from_quaternion(e, normalize=True):
     return out
 
 
-def quaternion_from_matrix(rotation):
+def quaternion_from_matrix(rotation: ArrayLike) -> np.ndarray:
     """Euler parameters (w, x, y, z) with w >= 0 of rotation matrices (..., 3, 3); Shepperd."""
     m = np.asarray(rotation, dtype=float)
     shape = m.shape[:-2]
@@ -212,7 +216,7 @@ def quaternion_from_matrix(rotation):
     return q.reshape(shape + (4,))
 
 
-def rotation_matrix(rpy_or_quat):
+def rotation_matrix(rpy_or_quat: ArrayLike) -> np.ndarray:
     """Rotation matrices from roll-pitch-yaw (..., 3) or Euler parameters (w, x, y, z) (..., 4).
 
     Roll-pitch-yaw are fixed-axis angles (REP 103): ``R = Rz(yaw) Ry(pitch) Rx(roll)``.
@@ -238,7 +242,7 @@ def rotation_matrix(rpy_or_quat):
     return out
 
 
-def rpy_from_matrix(rotation):
+def rpy_from_matrix(rotation: ArrayLike) -> np.ndarray:
     """Roll, pitch, yaw (..., 3) of rotation matrices (inverse of :func:`rotation_matrix`)."""
     m = np.asarray(rotation, dtype=float)
     roll = np.arctan2(m[..., 2, 1], m[..., 2, 2])
@@ -259,7 +263,8 @@ def _leg_vectors(geom, position, rotation):
     return position[..., None, :] + world_plat - geom.base_anchors, world_plat
 
 
-def inverse_kinematics(geom, position, rotation):
+def inverse_kinematics(geom: GoughStewartGeometry, position: ArrayLike,
+                       rotation: ArrayLike) -> np.ndarray:
     """Leg lengths C_i, eqs. (2)-(3): ``C_i = |r_1 + A_1 s_1^Bi - s_0^Ai|``.
 
     ``position`` (..., 3) and ``rotation`` (..., 3, 3) give the platform pose in the base frame;
@@ -270,7 +275,8 @@ def inverse_kinematics(geom, position, rotation):
     return np.sqrt(np.einsum('...ij,...ij->...i', legs, legs))
 
 
-def jacobian(geom, position, rotation):
+def jacobian(geom: GoughStewartGeometry, position: ArrayLike,
+             rotation: ArrayLike) -> np.ndarray:
     """Inverse Jacobian (..., 6, 6): row i = ``[u_i, (R p_i) x u_i]`` with u_i the unit leg.
 
     It maps the platform twist (linear velocity of the platform origin, angular velocity, both
@@ -281,7 +287,7 @@ def jacobian(geom, position, rotation):
     return np.concatenate([u, np.cross(world_plat, u)], axis=-1)
 
 
-def jacobian_condition(geom, jac):
+def jacobian_condition(geom: GoughStewartGeometry, jac: ArrayLike) -> np.ndarray | float:
     """2-norm condition number of the homogenised inverse Jacobian(s) (..., 6, 6).
 
     The moment columns are divided by the geometry's characteristic length so that both halves
@@ -295,7 +301,8 @@ def jacobian_condition(geom, jac):
         return np.where(sv[..., -1] > 0, sv[..., 0] / sv[..., -1], np.inf)
 
 
-def check_lengths(geom, lengths, name='leg lengths'):
+def check_lengths(geom: GoughStewartGeometry, lengths: ArrayLike,
+                  name: str = 'leg lengths') -> np.ndarray:
     """Raise :class:`UnreachablePoseError` unless every length is finite and within stroke."""
     lengths = np.asarray(lengths, dtype=float)
     if not np.all(np.isfinite(lengths)):
@@ -308,7 +315,9 @@ def check_lengths(geom, lengths, name='leg lengths'):
     return lengths
 
 
-def check_pose(geom, position, rotation, max_condition=DEFAULT_MAX_CONDITION):
+def check_pose(geom: GoughStewartGeometry, position: ArrayLike, rotation: ArrayLike,
+               max_condition: float = DEFAULT_MAX_CONDITION
+               ) -> tuple[np.ndarray, np.ndarray | float]:
     """Inverse kinematics of one pose, refusing unreachable and near-singular poses.
 
     Returns ``(lengths, condition)``; raises :class:`UnreachablePoseError` or
@@ -462,8 +471,10 @@ def _fk_cache(geom):
     return cache[1]
 
 
-def forward_kinematics(geom, lengths, guess_position, guess_rotation, tol=1e-12, max_iter=30,
-                       max_condition=DEFAULT_MAX_CONDITION, backend='auto'):
+def forward_kinematics(geom: GoughStewartGeometry, lengths: ArrayLike, guess_position: ArrayLike,
+                       guess_rotation: ArrayLike, tol: float = 1e-12, max_iter: int = 30,
+                       max_condition: float = DEFAULT_MAX_CONDITION,
+                       backend: str = 'auto') -> FKResult:
     """Platform pose from the six leg lengths by Newton-Raphson on eq. (4), warm-started.
 
     Unknowns ``q = [x, y, z, e0, e1, e2, e3]``; equations: the six driving constraints
@@ -643,9 +654,12 @@ def _forward_kinematics_numba(cache, c, r0, r1, r2, e0, e1, e2, e3, tol, max_ite
     return _new_tuple(FKResult, (np.array((r0, r1, r2)), rot, it, converged, cond))
 
 
-def forward_kinematics_batch(geom, lengths, guess_positions, guess_rotations, tol=1e-12,
-                             max_iter=30, max_condition=DEFAULT_MAX_CONDITION, backend='auto',
-                             threads=None):
+def forward_kinematics_batch(geom: GoughStewartGeometry, lengths: ArrayLike,
+                             guess_positions: ArrayLike, guess_rotations: ArrayLike,
+                             tol: float = 1e-12, max_iter: int = 30,
+                             max_condition: float = DEFAULT_MAX_CONDITION,
+                             backend: str = 'auto', threads: int | None = None
+                             ) -> BatchFKResult:
     """Vectorised :func:`forward_kinematics` for N length sets (N, 6) at once.
 
     Does not raise per pose: poses with lengths outside the stroke, a singular Jacobian, too
