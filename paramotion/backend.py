@@ -4,6 +4,8 @@ numba is an optional speed-up: every kernel has a numpy implementation that comp
 thing and is tested against it. ``backend='auto'`` uses numba when it is importable, unless the
 environment variable ``PARAMOTION_BACKEND`` says ``numpy`` (or ``numba``, to insist).
 """
+from __future__ import annotations
+
 import os
 
 #: Accepted backends; ``PARAMOTION_BACKEND`` (``numba`` or
@@ -11,7 +13,7 @@ import os
 BACKENDS = ('auto', 'numba', 'numpy')
 
 
-def usable_cores():
+def usable_cores() -> int:
     """Cores this process may run on (its CPU affinity mask, not the machine's count), >= 1."""
     try:
         return max(1, len(os.sched_getaffinity(0)))
@@ -19,7 +21,7 @@ def usable_cores():
         return max(1, os.cpu_count() or 1)
 
 
-def resolve_backend(backend='auto'):
+def resolve_backend(backend: str = 'auto') -> str:
     """``'numba'`` or ``'numpy'``: the compiled kernels when asked for and importable."""
     if backend not in BACKENDS:
         raise ValueError(f'backend must be one of {BACKENDS}, got {backend!r}')

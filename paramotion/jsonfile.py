@@ -1,11 +1,13 @@
 """Read the JSON input files (worlds, trunks, scenes) with one-line errors naming the file."""
+from __future__ import annotations
+
 import json
 from pathlib import Path
 
 from paramotion.errors import UserError
 
 
-def load_json_object(path, what):
+def load_json_object(path: str | Path, what: str) -> dict:
     """Parse ``path`` as a JSON object; any problem is a UserError '<what> <path>: ...'."""
     path = Path(path)
     try:

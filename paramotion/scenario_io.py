@@ -4,10 +4,14 @@ A scenario writes ``DIR/bag/``, ``DIR/result.json`` and a PNG. Outputs are first
 temporary sibling directory and moved into place only when the run succeeded, so a failed or
 interrupted run never leaves a half-written ``DIR``.
 """
+from __future__ import annotations
+
+import argparse
 import json
 import math
 import shutil
 import time
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -27,13 +31,13 @@ def _jsonable(value):
     return value
 
 
-def write_json(path, data):
+def write_json(path: str | Path, data: object) -> None:
     """Write ``data`` as indented JSON (numpy-aware, strict: no NaN literals)."""
     Path(path).write_text(json.dumps(_jsonable(data), indent=1, allow_nan=False) + '\n')
 
 
 @contextmanager
-def output_dir(out, overwrite=False):
+def output_dir(out: str | Path, overwrite: bool = False) -> Iterator[Path]:
     """Yield a temporary directory that becomes ``out`` when the block succeeds.
 
     ``out`` must not exist unless ``overwrite``; on failure the temporary directory is removed
@@ -55,7 +59,7 @@ def output_dir(out, overwrite=False):
     tmp.rename(out)
 
 
-def add_output_args(parser, default_out=None):
+def add_output_args(parser: argparse.ArgumentParser, default_out: str | None = None) -> None:
     """Add the common ``--out`` and ``--overwrite`` arguments."""
     parser.add_argument('--out', required=default_out is None, default=default_out,
                         help='output directory (bag/, result.json, PNG)'
