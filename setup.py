@@ -33,8 +33,8 @@ NODES = [
     'fast_isolation_controller = cable_robot_pkg.fast.isolation_node:main',
     # cable_robot_pkg workspace (issue 6)
     'workspace_monitor = cable_robot_pkg.cdrpm.workspace_monitor_node:main',
-    # Gough-Stewart simplified Voronoi planner (issue 7)
-    'voronoi_planner = paramotion.voronoi.planner_node:main',
+    # voronoi_pkg: Gough-Stewart simplified Voronoi planner (issue 7)
+    'voronoi_planner = voronoi_pkg.planner_node:main',
 ]
 
 setup(
@@ -53,6 +53,8 @@ setup(
     package_data={'': ['*.yaml', '*.json']},
     include_package_data=True,
     install_requires=['setuptools'],
+    # Sweeps run their cases on Dask; everything else works without it (--serial).
+    extras_require={'sweeps': ['dask>=2026.8.0', 'distributed>=2026.8.0']},
     zip_safe=True,
     maintainer='paramotion developers',
     maintainer_email='dev@paramotion.invalid',

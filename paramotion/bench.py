@@ -43,8 +43,8 @@ def bench_voronoi(quick):
     ``paramotion voronoi bench``: random configurations, seed 0; cold planner per query)."""
     import numpy as np
 
-    from paramotion.voronoi.planar import PAPER_GOAL, PAPER_START, paper_model
-    from paramotion.voronoi.planner import VoronoiPlanner
+    from voronoi_pkg.planar import PAPER_GOAL, PAPER_START, paper_model
+    from voronoi_pkg.planner import VoronoiPlanner
     model = paper_model()
     n = 20000 if quick else 200000
     d = model.domain

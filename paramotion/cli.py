@@ -18,10 +18,11 @@ SUBCOMMAND_MODULES = [
     'climber_pkg.scenario',               # paramotion climb
     'cable_robot_pkg.fast.scenario',      # paramotion fast
     'cable_robot_pkg.cdrpm.cli',         # paramotion workspace ...
-    'paramotion.voronoi.cli',             # paramotion voronoi ...
+    'voronoi_pkg.cli',                    # paramotion voronoi ...
     'paramotion.launch',                  # paramotion launch FILE|NAME [name:=value ...]
     'paramotion.demo',                    # paramotion demo (README command 1)
     'paramotion.bench',                   # paramotion bench [--json]
+    'paramotion.report',                  # paramotion report [--only PART] [--quick]
 ]
 
 

@@ -8,9 +8,9 @@ REPO = Path(__file__).resolve().parents[1]
 
 ALGORITHMS = [
     'paramotion.gough_stewart', 'paramotion.range_sensing', 'paramotion.smoke.control',
-    'paramotion.voronoi.predicates', 'paramotion.voronoi.distance', 'paramotion.voronoi.planar',
-    'paramotion.voronoi.diagram', 'paramotion.voronoi.planner', 'paramotion.voronoi.spatial321',
-    'paramotion.voronoi.spatial321_roadmap',
+    'voronoi_pkg.predicates', 'voronoi_pkg.distance', 'voronoi_pkg.planar',
+    'voronoi_pkg.diagram', 'voronoi_pkg.planner', 'voronoi_pkg.spatial321',
+    'voronoi_pkg.spatial321_roadmap',
     'coverage_pkg.world', 'coverage_pkg.sonar', 'coverage_pkg.mapping', 'coverage_pkg.gvd',
     'coverage_pkg.morse', 'coverage_pkg.hierarchical_graph', 'coverage_pkg.planner',
     'coverage_pkg.cvs', 'coverage_pkg.baseline',
@@ -88,8 +88,8 @@ def test_each_robot_has_one_room():
         assert (room / cli).exists(), f'{robot}: {cli} missing'
         assert any(room.glob('*_node.py')), f'{robot}: no node beside the algorithms'
         assert any((room / 'config').glob('*.yaml')), f'{robot}: no config/'
-    assert (REPO / 'paramotion' / 'voronoi' / 'cli.py').exists()
-    assert not (REPO / 'paramotion' / 'voronoi_cli.py').exists()
+    assert (REPO / 'voronoi_pkg' / 'cli.py').exists()
+    assert not (REPO / 'paramotion' / 'voronoi').exists()
 
 
 def test_every_console_script_resolves():

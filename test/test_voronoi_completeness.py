@@ -23,8 +23,8 @@ from scipy.sparse.csgraph import connected_components
 from test_voronoi_detours import clearance
 from test_voronoi_planner import SQUARE, _bad_samples, bad_segments, independent_check
 
-from paramotion.voronoi.planar import Domain, planar_model
-from paramotion.voronoi.planner import VoronoiPlanner
+from voronoi_pkg.planar import Domain, planar_model
+from voronoi_pkg.planner import VoronoiPlanner
 
 FILL_H, FILL_DPHI = 1.5, math.radians(7.5)
 PLANNER_H, PLANNER_DPHI_DEG = 3.0, 15.0

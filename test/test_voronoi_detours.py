@@ -16,8 +16,8 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 from test_voronoi_planner import SQUARE, independent_check, near_diagram_fraction
 
-from paramotion.voronoi.planar import Domain, planar_model
-from paramotion.voronoi.planner import RETRACTION, VoronoiPlanner
+from voronoi_pkg.planar import Domain, planar_model
+from voronoi_pkg.planner import RETRACTION, VoronoiPlanner
 
 
 def rect(x0, x1, y0, y1):

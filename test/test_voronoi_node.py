@@ -13,8 +13,8 @@ from visualization_msgs.msg import MarkerArray
 from paramotion.errors import ParameterError
 from paramotion.graph import Graph
 from paramotion.qos import LATCHED_QOS
-from paramotion.voronoi.planar import PAPER_GOAL, PAPER_START
-from paramotion.voronoi.planner_node import VoronoiPlannerNode
+from voronoi_pkg.planar import PAPER_GOAL, PAPER_START
+from voronoi_pkg.planner_node import VoronoiPlannerNode
 
 
 def _pose(x, y, yaw, frame='map'):

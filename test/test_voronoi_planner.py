@@ -14,14 +14,14 @@ import pytest
 
 from paramotion.cli import main as cli_main
 from paramotion.errors import UserError
-from paramotion.voronoi.diagram import grid_axes, slice_fields
-from paramotion.voronoi.planar import (
+from voronoi_pkg.diagram import grid_axes, slice_fields
+from voronoi_pkg.planar import (
     PAPER_GOAL,
     PAPER_START,
     load_scene,
     paper_model,
 )
-from paramotion.voronoi.planner import ATTACH, RETRACTION, SLICE_LINK, SLICE_PIECE, VoronoiPlanner
+from voronoi_pkg.planner import ATTACH, RETRACTION, SLICE_LINK, SLICE_PIECE, VoronoiPlanner
 
 SQUARE = np.array([[-25, 40], [-25, -40], [55, -40], [55, 40]], dtype=float)
 

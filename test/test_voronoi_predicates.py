@@ -9,9 +9,9 @@ import itertools
 
 import numpy as np
 
-from paramotion.voronoi.distance import compile_rho
-from paramotion.voronoi.planar import PAPER_GOAL, PAPER_START, paper_model
-from paramotion.voronoi.predicates import (
+from voronoi_pkg.distance import compile_rho
+from voronoi_pkg.planar import PAPER_GOAL, PAPER_START, paper_model
+from voronoi_pkg.predicates import (
     And,
     Delta,
     Not,

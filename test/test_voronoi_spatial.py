@@ -11,8 +11,8 @@ import pytest
 
 from paramotion.cli import main as cli_main
 from paramotion.errors import UserError
-from paramotion.voronoi.predicates import bracket4
-from paramotion.voronoi.spatial321 import (
+from voronoi_pkg.predicates import bracket4
+from voronoi_pkg.spatial321 import (
     DEMO_BASE,
     DEMO_GOAL,
     DEMO_START,
@@ -26,7 +26,7 @@ from paramotion.voronoi.spatial321 import (
     load_scene,
     robot_segment_pairs,
 )
-from paramotion.voronoi.spatial321_roadmap import DiagramRoadmapPlanner, retract, tie_measure
+from voronoi_pkg.spatial321_roadmap import DiagramRoadmapPlanner, retract, tie_measure
 
 RNG = np.random.default_rng(321)
 # Independent checks run at half the planner's resolution (0.005 m, 0.01 rad).

@@ -1,7 +1,7 @@
 """Measure of distance to forbidden regions in configuration space (section 4 of Vaca, Aranda &
 Thomas, after Canny & Donald's simplified Voronoi diagrams).
 
-A predicate tree (:mod:`paramotion.voronoi.predicates`) becomes a real-valued function rho by
+A predicate tree (:mod:`voronoi_pkg.predicates`) becomes a real-valued function rho by
 letting positive values stand for true: ``min`` implements AND, ``max`` implements OR and
 negation implements NOT (so XOR, built from AND/OR/NOT, becomes
 ``max(min(a, -b), min(-a, b))``). Each ``Delta`` leaf contributes its determinant. rho is
@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from paramotion.voronoi.predicates import And, Delta, Not, Or, canonical, determinant_keys
+from voronoi_pkg.predicates import And, Delta, Not, Or, canonical, determinant_keys
 
 __all__ = ['RhoProgram', 'compile_rho']
 

@@ -225,7 +225,7 @@ def holds(tree, dets):
     """Boolean value of ``tree`` given ``dets`` (canonical key -> value array).
 
     Implements eq. (1) literally (``Delta`` is ``value > 0``), for checking the real-valued
-    measure of :mod:`paramotion.voronoi.distance` against the logic it encodes.
+    measure of :mod:`voronoi_pkg.distance` against the logic it encodes.
     """
     if isinstance(tree, Delta):
         key, sign = canonical(tree.points)

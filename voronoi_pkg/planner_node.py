@@ -1,7 +1,7 @@
 """voronoi_planner: serves nav_msgs/srv/GetPlan for the planar platform of Vaca, Aranda &
 Thomas (section 6) with the simplified Voronoi diagram planner.
 
-A thin adapter around :class:`paramotion.voronoi.planner.VoronoiPlanner`:
+A thin adapter around :class:`voronoi_pkg.planner.VoronoiPlanner`:
 
 * service ``/voronoi/get_plan`` (nav_msgs/srv/GetPlan): start and goal poses give the
   platform configuration ``(x, y, yaw)`` = (P3, direction of P3P4); the response's
@@ -29,9 +29,9 @@ from visualization_msgs.msg import Marker, MarkerArray
 from paramotion.errors import ParameterError, UserError
 from paramotion.node import Param, ParamotionNode, run_node
 from paramotion.qos import LATCHED_QOS
-from paramotion.voronoi.diagram import grid_axes, tie_segments
-from paramotion.voronoi.planar import load_scene, paper_model
-from paramotion.voronoi.planner import VoronoiPlanner, diagram_segments
+from voronoi_pkg.diagram import grid_axes, tie_segments
+from voronoi_pkg.planar import load_scene, paper_model
+from voronoi_pkg.planner import VoronoiPlanner, diagram_segments
 
 
 def yaw_from_quaternion(q):

@@ -88,8 +88,8 @@ def _check_out(out):
 def _plan(args):
     from tqdm import tqdm
 
-    from paramotion.voronoi.planar import load_scene, paper_model
-    from paramotion.voronoi.planner import VoronoiPlanner, validate_configuration
+    from voronoi_pkg.planar import load_scene, paper_model
+    from voronoi_pkg.planner import VoronoiPlanner, validate_configuration
 
     if not (args.grid > 0 and math.isfinite(args.grid)):
         raise UserError(f'--grid {args.grid}: must be a positive number')
@@ -138,7 +138,7 @@ def _plan(args):
     }
     (out / 'result.json').write_text(_dump(doc))
     if not args.no_figures:
-        from paramotion.voronoi.figures import figure2, figure3
+        from voronoi_pkg.figures import figure2, figure3
         figure2(model, out / 'figure2.png')
         figure3(model, out / 'figure3.png', res.path if res.found else None)
     if res.found:
@@ -190,8 +190,8 @@ def _plan321(args):
     """Plan between two poses and write ``out/result.json`` and ``out/figure321.png``."""
     from tqdm import tqdm
 
-    from paramotion.voronoi.figures import figure321
-    from paramotion.voronoi.spatial321 import (
+    from voronoi_pkg.figures import figure321
+    from voronoi_pkg.spatial321 import (
         DEMO_GOAL,
         DEMO_LEG_LIMITS,
         DEMO_START,
@@ -201,7 +201,7 @@ def _plan321(args):
         load_scene,
         validate_pose,
     )
-    from paramotion.voronoi.spatial321_roadmap import DiagramRoadmapPlanner
+    from voronoi_pkg.spatial321_roadmap import DiagramRoadmapPlanner
 
     out = _check_out(args.out)
     if args.no_leg_limits and (args.leg_min is not None or args.leg_max is not None):
@@ -288,8 +288,8 @@ def _plan321(args):
 
 
 def _bench(args):
-    from paramotion.voronoi.planar import PAPER_GOAL, PAPER_START, paper_model
-    from paramotion.voronoi.planner import VoronoiPlanner
+    from voronoi_pkg.planar import PAPER_GOAL, PAPER_START, paper_model
+    from voronoi_pkg.planner import VoronoiPlanner
 
     if args.repeats < 1 or args.configs < 1000:
         raise UserError('--repeats must be >= 1 and --configs >= 1000')
@@ -334,7 +334,7 @@ def _bench(args):
           f'on diagram {res.on_diagram_fraction:.3f} of the path length (targets < 1 s, '
           'stretch 0.25 s)')
     try:
-        from paramotion.voronoi.spatial321 import demo_model
+        from voronoi_pkg.spatial321 import demo_model
     except ImportError:
         return 0
     sm = demo_model()

@@ -18,7 +18,7 @@ from matplotlib.collections import LineCollection  # noqa: E402
 from mpl_toolkits.mplot3d.art3d import Line3DCollection  # noqa: E402
 from scipy import ndimage  # noqa: E402
 
-from paramotion.voronoi.diagram import diagram_mask, tie_segments  # noqa: E402
+from voronoi_pkg.diagram import diagram_mask, tie_segments  # noqa: E402
 
 __all__ = ['figure2', 'figure3', 'slice_summary', 'topology_signature']
 
@@ -203,7 +203,7 @@ def figure321(model, path_file, path, start, goal):
     """3-D view of the platform at start, along the path and at the goal, and the boxes."""
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
-    from paramotion.voronoi.spatial321 import LEGS
+    from voronoi_pkg.spatial321 import LEGS
     fig = plt.figure(figsize=(9, 8))
     ax = fig.add_subplot(projection='3d')
     for verts, quads, _ in model.meshes:

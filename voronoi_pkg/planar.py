@@ -25,8 +25,8 @@ import numpy as np
 
 from paramotion.errors import UserError
 from paramotion.jsonfile import load_json_object
-from paramotion.voronoi.distance import compile_rho
-from paramotion.voronoi.predicates import (
+from voronoi_pkg.distance import compile_rho
+from voronoi_pkg.predicates import (
     And,
     Delta,
     Not,

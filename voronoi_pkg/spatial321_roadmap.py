@@ -2,7 +2,7 @@
 edges run along it (section 5 of Vaca, Aranda & Thomas, after Canny & Donald).
 
 rho is the minimum over *contacts* (the fused factors of
-:class:`~paramotion.voronoi.spatial321.Spatial321Model`, plus bounds and leg limits). The
+:class:`~voronoi_pkg.spatial321.Spatial321Model`, plus bounds and leg limits). The
 diagram is where the two smallest contacts tie: the pose is equidistant, in the paper's rho
 sense, from two basic contacts. Contacts whose values are decided by the same signed
 determinant are one feature and do not tie (:meth:`Spatial321Model.contact_values`).
@@ -34,8 +34,8 @@ from scipy.spatial import cKDTree
 from scipy.stats import qmc
 
 from paramotion.errors import UserError
-from paramotion.voronoi.predicates import bracket4
-from paramotion.voronoi.spatial321 import (
+from voronoi_pkg.predicates import bracket4
+from voronoi_pkg.spatial321 import (
     bad_samples,
     check_path6,
     densify6,

@@ -1,14 +1,14 @@
 """Simplified Voronoi diagram of the distance measure rho (section 5 of Vaca, Aranda & Thomas;
 Canny & Donald 1988), per orientation slice and connected across orientation.
 
-rho is a min/max tree of signed determinants (:mod:`paramotion.voronoi.distance`). Each
+rho is a min/max tree of signed determinants (:mod:`voronoi_pkg.distance`). Each
 configuration has one *active* leaf - the determinant that currently decides rho. The
 simplified Voronoi diagram is the set where two or more leaves tie, i.e. where the active
 leaf changes. For a fixed orientation phi of the planar platform every determinant is affine
 in (x, y), so each slice of the diagram is an arrangement of straight segments (the paper's
 "straight skeleton" remark).
 
-Construction used by the planner (:mod:`paramotion.voronoi.planner`):
+Construction used by the planner (:mod:`voronoi_pkg.planner`):
 
 * :func:`affine_coefficients`: the exact affine form ``A + B x + C y`` of every determinant in
   a slice (all moving points are P3 plus a constant), so grid fields (:func:`slice_fields`)

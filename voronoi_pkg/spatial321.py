@@ -39,8 +39,8 @@ import numpy as np
 
 from paramotion.errors import UserError
 from paramotion.jsonfile import load_json_object
-from paramotion.voronoi.distance import compile_rho
-from paramotion.voronoi.predicates import (
+from voronoi_pkg.distance import compile_rho
+from voronoi_pkg.predicates import (
     And,
     Delta,
     Not,
@@ -153,7 +153,7 @@ def robot_segment_pairs():
 class FlatContacts:
     """All contacts of a compiled rho program evaluated level by level with numpy.
 
-    The same min/max tree as :class:`~paramotion.voronoi.distance.RhoProgram` (same values;
+    The same min/max tree as :class:`~voronoi_pkg.distance.RhoProgram` (same values;
     ties resolve to the first child, as there), flattened so that every node of one height
     and operation is one ``reduceat``: a few dozen array operations per batch instead of one
     per node, and all 4x4 determinants in one vectorised expression.

@@ -11,7 +11,7 @@ onto the diagram, and to join these points with a path that lies wholly on the d
    (e.g. P3 above and below the base line);
 3. retracts start and goal onto the diagram by rho ascent: a straight climb along the gradient
    of the active (affine) leaf until another leaf becomes active - a point of the diagram;
-4. searches only along diagram edges (:mod:`paramotion.voronoi.diagram`): the exact straight
+4. searches only along diagram edges (:mod:`voronoi_pkg.diagram`): the exact straight
    pieces within each phi slice and links between diagram vertices of consecutive slices,
    with Dijkstra (length, phi weighted by ``phi_scale``) among edges keeping at least half the
    best achievable bottleneck clearance, then all; slices are computed lazily in widening
@@ -36,7 +36,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import breadth_first_order, dijkstra, minimum_spanning_tree
 
 from paramotion.errors import UserError
-from paramotion.voronoi.diagram import (
+from voronoi_pkg.diagram import (
     diagram_slices,
     grid_axes,
     leaf_evaluator,
