@@ -288,6 +288,7 @@ def test_cli_cow_writes_json_and_png(tmp_path, capsys):
     (['cow', '--rot', '0', '0', '0', '--robot', 'missing.yaml'], 'missing.yaml'),
     (['orientation', '--position', '5', '0', '0'], '--position'),
     (['bench', '--runs', '0'], '--runs'),
+    (['cow', '--rot', '0', '0', '0', '--without', 'cables'], '--without'),
 ])
 def test_cli_bad_arguments(tmp_path, capsys, argv, needle):
     out = tmp_path / 'out'
@@ -303,6 +304,7 @@ def test_cli_table2_prints_paper_beside_ours(capsys):
     assert cli_main(['workspace', 'table2', '--step', '0.1']) == 0
     text = capsys.readouterr().out
     assert 'paper' in text and '30      30      30' in text and '71%' in text
+    assert 'fitted to Table II and the TOW box' in text
 
 
 def test_corner_search_finds_the_shipped_pairings():
@@ -360,7 +362,7 @@ def test_default_neuron_meets_the_identification_requirements(neuron, table):
 
 
 def test_home_variant_is_wrench_closed_at_every_home_orientation():
-    """kntu_neuron_home (the former default) meets the edge search's home requirement: with
+    """kntu_neuron_home (wrench-closed around home) meets the edge search's home requirement: with
     the centroid at O it stays wrench-closed and collision-free over +-30, +-30, +-10 deg;
     the Table II Neuron does not (it loses wrench closure when turned in place)."""
     from cable_robot_pkg.cdrpm import arrangements as arr

@@ -186,13 +186,13 @@ def pose_set(decider):
     return _SETS[decider]
 
 
-def _check(decider, backend):
+def _check(decider, backend, without=()):
     """Disagreements of :func:`classify_poses` with the reference on ``decider``'s set."""
     desc, groups = pose_set(decider)
     bit = col.FLAG_OF_TYPE[decider]
     problems, ours_free, ref_free, total = [], 0, 0, 0
     for pos, rot, expected_free in groups:
-        flags = col.classify_poses(desc, pos, rot, backend=backend)
+        flags = col.classify_poses(desc, pos, rot, backend=backend, without=without)
         ours = flags == 0
         other = flags & ~np.uint8(bit)
         if np.any(other):
@@ -211,19 +211,19 @@ def _check(decider, backend):
     return problems
 
 
-def check_cable_cable(backend='numpy'):
+def check_cable_cable(backend='numpy', without=()):
     """Cable-cable (III-A): the share decided by segment distances alone."""
-    return _check('cable_cable', backend)
+    return _check('cable_cable', backend, without)
 
 
-def check_cable_body(backend='numpy'):
+def check_cable_body(backend='numpy', without=()):
     """Cable-body (III-B): the share decided by cables entering the platform alone."""
-    return _check('cable_body', backend)
+    return _check('cable_body', backend, without)
 
 
-def check_cable_workpiece(backend='numpy'):
+def check_cable_workpiece(backend='numpy', without=()):
     """Cable-workpiece (III-C): the share decided by cables through the workpiece alone."""
-    return _check('cable_workpiece', backend)
+    return _check('cable_workpiece', backend, without)
 
 
 # --- the sets are informative and the code passes them ----------------------------------------
@@ -343,3 +343,19 @@ def test_mutation_is_detected(monkeypatch, mutation):
     problems = check('numpy')
     assert problems, f'{mutation}: not detected'
     assert any('share' in p for p in problems), problems
+
+
+@pytest.mark.parametrize('construct,check', [
+    ('cable_cable', check_cable_cable), ('cable_body', check_cable_body),
+    ('cable_workpiece', check_cable_workpiece), ('workpiece_sides', check_cable_workpiece)])
+def test_switching_a_construct_off_fails_its_check(construct, check):
+    """``without=`` (the ``--without`` of the CLI) turns a construct off: its set then has a
+    larger accessible share than the reference, as the mutations do."""
+    problems = check('numpy', without={construct})
+    assert any('share' in p for p in problems), problems
+
+
+def test_unknown_construct_is_refused():
+    desc = load_description()
+    with pytest.raises(ValueError, match='without: unknown construct'):
+        col.classify_poses(desc, np.zeros((1, 3)), np.eye(3), without={'cable'})

@@ -17,7 +17,7 @@ Three searches:
    y and not under the z mirror. None is both collision-free and wrench-closed on more than a
    third of the frame: two cables crossing between parallel frame and platform edges are
    coplanar at every translation and always intersect, and the pairings that avoid such
-   crossings twist the platform one way only (the former default, ``kntu_pinwheel.yaml``) or
+   crossings twist the platform one way only (``kntu_pinwheel.yaml``) or
    have no moment about one axis (``kntu_uncrossed.yaml``).
 2. **Edge anchors** (:func:`search_edge_arrangements`): every A_i may sit anywhere on the 12
    edges of the frame (on a ``pitch`` spacing, corners included), and the arrangement is
@@ -25,11 +25,12 @@ Three searches:
    contains the half turn of IV-A), so two cables - those of platform corners (+,+,+) and
    (-,+,+) - generate all eight. Scored with the wrench-closure test of
    :mod:`.wrench_closure` around the home pose: the search behind ``kntu_neuron_home.yaml``.
-3. **Identification from the paper's results** (:func:`search_table2_arrangements`): the same
-   edge-anchored candidates that can hold the platform at home, kept when they reproduce the
+3. **Fit to the paper's results** (:func:`search_table2_arrangements`): the same
+   edge-anchored candidates that can hold the platform at home, kept when they match the
    paper's Table II (within 5 points on the in-frame grid) and hold its 1.2 x 1.2 x 1.4 m box in
    the total orientation workspace; the best Table II fit is the shipped default,
-   ``kntu_neuron.yaml``.
+   ``kntu_neuron.yaml``, an arrangement fitted to Table II and the TOW box (not the paper's
+   anchors, which are not published).
 """
 import itertools
 
@@ -489,7 +490,7 @@ def search_table2_arrangements(frame_half_size, platform_half_size, cable_radius
                                min_home_gap=0.02, screen_step=0.2, screen_tolerance=8.0,
                                step=0.05, tolerance=5.0, tow_step=0.1, tow_box_m=None,
                                progress=False, map_cases=None):
-    """Identify the Neuron from the paper's published workspace results; best first.
+    """Fit the Neuron to the paper's published workspace results; best first.
 
     The paper gives no anchor coordinates but measures its arrangement: Table II (share of
     the grid free of collisions at five orientations) and a box of 1.2 x 1.2 x 1.4 m inside
@@ -497,7 +498,7 @@ def search_table2_arrangements(frame_half_size, platform_half_size, cable_radius
     edge-anchored, D2-symmetric arrangements with the paper's properties that are
     wrench-closed and collision-free at the home pose (:func:`_home_candidates`). Kept:
 
-    1. Table II reproduced: every row's collision-free share of the in-frame grid
+    1. Table II matched: every row's collision-free share of the in-frame grid
        (:func:`table2_in_frame`) within ``screen_tolerance`` points of the paper on a
        ``screen_step`` grid, then within ``tolerance`` points on the ``step`` grid;
     2. the paper's TOW box (or ``tow_box_m``) fits inside the TOW (``tow_step`` grid, 10 deg

@@ -51,6 +51,9 @@ CABLE_WORKPIECE = 8
 PLATFORM_WORKPIECE = 16
 FLAG_OF_TYPE = {'cable_cable': CABLE_CABLE, 'cable_body': CABLE_BODY,
                 'cable_workpiece': CABLE_WORKPIECE, 'platform_workpiece': PLATFORM_WORKPIECE}
+#: Constructs that ``without`` can switch off (ablation): the three collision checks of
+#: section III, and the workpiece's side faces (leaving the paper's top-plane projection).
+CONSTRUCTS = ('cable_cable', 'cable_body', 'cable_workpiece', 'workpiece_sides')
 
 #: Slack (m) inside the platform box before D_i counts as inside (a cable lying along a face
 #: grazes the box without entering it).
@@ -262,8 +265,33 @@ class _SharedRotationScreen:
         return wn * wn <= self.limit * (np.abs(nn) * (1.0 + SCREEN_SLACK) + 1e-9)
 
 
+def check_without(without) -> frozenset:
+    """Validated set of construct names to switch off (see :data:`CONSTRUCTS`)."""
+    names = frozenset(without or ())
+    unknown = sorted(names - set(CONSTRUCTS))
+    if unknown:
+        raise ValueError(f'without: unknown construct {unknown[0]!r} '
+                         f'(known: {", ".join(CONSTRUCTS)})')
+    return names
+
+
+def top_plane_hit(p0, d, lo, hi):
+    """The paper's cable-workpiece test (III-C): the point P_i where segment ``p0 + t d``
+    crosses the workpiece's top plane z = hi_z, projected on the floor (P'_i), lies inside the
+    footprint (lo, hi) in x and y. Misses cables that pass through a side face only."""
+    p0 = np.asarray(p0, dtype=float)
+    d = np.asarray(d, dtype=float)
+    dz = d[..., 2]
+    with np.errstate(divide='ignore', invalid='ignore'):
+        t = (hi[2] - p0[..., 2]) / np.where(dz == 0.0, 1.0, dz)
+    crosses = (dz != 0.0) & (t > 0.0) & (t < 1.0)
+    px = p0[..., 0] + t * d[..., 0]
+    py = p0[..., 1] + t * d[..., 1]
+    return crosses & (px > lo[0]) & (px < hi[0]) & (py > lo[1]) & (py < hi[1])
+
+
 def classify_poses(desc, positions, rotations, chunk=DEFAULT_CHUNK, detail=False,
-                   backend='auto'):
+                   backend='auto', without=()):
     """Collision status of N poses as bit flags (uint8, (N,)), processed in chunks.
 
     Flags: ``OUTSIDE`` (platform not inside the frame; then no other flag is set),
@@ -274,9 +302,12 @@ def classify_poses(desc, positions, rotations, chunk=DEFAULT_CHUNK, detail=False
     without a workpiece and without ``detail``, ``'numba'`` (or ``'auto'`` with numba
     installed, see :func:`paramotion.backend.resolve_backend`) runs the compiled kernel of
     :mod:`.collisions_numba`; everything else runs the numpy code below.
+    ``without`` names constructs of :data:`CONSTRUCTS` to switch off (an ablation; always the
+    numpy code): their flags are never set.
     """
     positions, rotations = as_pose_arrays(positions, rotations)
-    if (not detail and rotations.ndim == 2 and desc.workpiece is None
+    without = check_without(without)
+    if (not detail and not without and rotations.ndim == 2 and desc.workpiece is None
             and resolve_backend(backend) == 'numba'):
         return _classify_shared_numba(desc, positions, rotations)
     total = positions.shape[0]
@@ -294,7 +325,7 @@ def classify_poses(desc, positions, rotations, chunk=DEFAULT_CHUNK, detail=False
         stop = min(start + chunk, total)
         rot = rotations if shared else rotations[start:stop]
         flags[start:stop], part = _classify_chunk(desc, positions[start:stop], rot, detail,
-                                                  screen)
+                                                  screen, without)
         if detail:
             for key, value in part.items():
                 extra[key][start:stop] = value
@@ -317,7 +348,7 @@ def _classify_shared_numba(desc, positions, rot):
     return flags
 
 
-def _classify_chunk(desc, pos, rot, detail, screen=None):
+def _classify_chunk(desc, pos, rot, detail, screen=None, without=frozenset()):
     """Flags of one chunk of poses (see :func:`classify_poses`)."""
     flags = np.zeros(pos.shape[0], dtype=np.uint8)
     extent = platform_extent(desc, rot)
@@ -339,11 +370,16 @@ def _classify_chunk(desc, pos, rot, detail, screen=None):
         rb = (desc.platform_points @ rot.T)[None]
     d = pos[:, None, :] + rb - desc.frame_points[None]              # A_iB_i, eq. (1)
     lengths = np.sqrt(_dot(d, d))                                    # eq. (2)
-    if screen is not None:
+    if 'cable_cable' in without:
+        pair_flags = np.zeros((idx.size, desc.pair_i.size), dtype=bool)
+    elif screen is not None:
         pair_flags = _exact_pairs(desc, d, screen.candidates(pos))
     else:
         pair_flags = _cable_pair_flags(desc, d)
-    body = _body_flags(desc, d, lengths, rot)
+    if 'cable_body' in without:
+        body = np.zeros((idx.size, desc.n_cables), dtype=bool)
+    else:
+        body = _body_flags(desc, d, lengths, rot)
     sub = np.zeros(idx.size, dtype=np.uint8)
     sub[pair_flags.any(axis=1)] |= CABLE_CABLE
     sub[body.any(axis=1)] |= CABLE_BODY
@@ -352,7 +388,12 @@ def _classify_chunk(desc, pos, rot, detail, screen=None):
         lo, hi = desc.workpiece_box
         eps = desc.cable_radius
         a = np.broadcast_to(desc.frame_points[None], d.shape)
-        work = segment_box_hit(a, d, lo - eps, hi + eps)
+        if 'cable_workpiece' in without:
+            work = np.zeros(d.shape[:2], dtype=bool)
+        elif 'workpiece_sides' in without:
+            work = top_plane_hit(a, d, lo - eps, hi + eps)
+        else:
+            work = segment_box_hit(a, d, lo - eps, hi + eps)
         sub[work.any(axis=1)] |= CABLE_WORKPIECE
         sub[obb_aabb_overlap(pos, rot, desc.platform_half_size, lo, hi)] |= PLATFORM_WORKPIECE
     flags[idx] = sub

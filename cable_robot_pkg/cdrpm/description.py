@@ -40,7 +40,7 @@ CONFIG_DIR = Path(__file__).resolve().parent / 'config'
 
 
 def default_description_path():
-    """Path of the shipped default description: the paper's Neuron arrangement."""
+    """Path of the shipped default description: the Neuron fitted to Table II and the TOW box."""
     return CONFIG_DIR / 'kntu_neuron.yaml'
 
 

@@ -136,23 +136,25 @@ class COWResult:
 
 
 def constant_orientation_workspace(desc, rotation_deg, step=0.05, axes=None, progress=False,
-                                   chunk=DEFAULT_CHUNK):
-    """COW (section IV-A) at orientation ``rotation_deg`` = (r_x, r_y, r_z) in degrees."""
+                                   chunk=DEFAULT_CHUNK, without=()):
+    """COW (section IV-A) at orientation ``rotation_deg`` = (r_x, r_y, r_z) in degrees;
+    ``without`` switches constructs off (:func:`classify_poses`)."""
     axes = grid_axes(desc, step) if axes is None else [np.asarray(a, float) for a in axes]
     points = grid_points(axes)
     rot = rotation_matrix_deg(*rotation_deg)
     # Load the compiled kernel (numba backend) on one pose before the clock starts: a one-off
     # start-up cost of the process (about 0.1-0.3 s from the on-disk cache), not per pose.
-    classify_poses(desc, points[:1], rot, chunk)
+    classify_poses(desc, points[:1], rot, chunk, without=without)
     start = time.perf_counter()
     if progress:
         block = max(chunk, points.shape[0] // 50)
         flags = np.empty(points.shape[0], dtype=np.uint8)
         for lo in _progress(range(0, points.shape[0], block), True,
                             total=-(-points.shape[0] // block), desc='COW'):
-            flags[lo:lo + block] = classify_poses(desc, points[lo:lo + block], rot, chunk)
+            flags[lo:lo + block] = classify_poses(desc, points[lo:lo + block], rot, chunk,
+                                                  without=without)
     else:
-        flags = classify_poses(desc, points, rot, chunk)
+        flags = classify_poses(desc, points, rot, chunk, without=without)
     wall = time.perf_counter() - start
     shape = tuple(a.size for a in axes)
     return COWResult(rotation_deg=tuple(float(v) for v in rotation_deg), axes=axes,
@@ -186,11 +188,11 @@ def benchmark_cow(desc=None, rotation_deg=(30, 30, 10), step=0.05, repeats=7, pr
             'kntu_rotation_deg': list(rotation_deg), 'kntu_step_m': step}
 
 
-def table2(desc, step=0.05, progress=False):
+def table2(desc, step=0.05, progress=False, without=()):
     """The paper's Table II rows for ``desc``: list of dicts with ours beside the paper's."""
     rows = []
     for rot, paper, warp in _progress(TABLE2_ROWS, progress, desc='Table II'):
-        cow = constant_orientation_workspace(desc, rot, step=step)
+        cow = constant_orientation_workspace(desc, rot, step=step, without=without)
         rows.append({
             'rotation_deg': list(rot),
             'paper_kntu_percent': paper,
@@ -273,7 +275,7 @@ def _first_cause_counts(flags):
 
 
 def orientation_workspace(desc, position, rz_deg=(0, 10, 20, 30), rx_range=(-90, 90),
-                          ry_range=(-90, 90), step_deg=1.0):
+                          ry_range=(-90, 90), step_deg=1.0, without=()):
     """Orientation workspace at ``position`` (IV-B): flags over an (r_x, r_y) grid per r_z."""
     rx = np.arange(rx_range[0], rx_range[1] + step_deg / 2, step_deg)
     ry = np.arange(ry_range[0], ry_range[1] + step_deg / 2, step_deg)
@@ -281,7 +283,7 @@ def orientation_workspace(desc, position, rz_deg=(0, 10, 20, 30), rx_range=(-90,
     mz, mx, my = np.meshgrid(rz, rx, ry, indexing='ij')
     rots = rotation_matrix_deg(mx.ravel(), my.ravel(), mz.ravel())
     pos = np.broadcast_to(np.asarray(position, dtype=float), (rots.shape[0], 3))
-    flags = classify_poses(desc, pos, rots).reshape(mz.shape)
+    flags = classify_poses(desc, pos, rots, without=without).reshape(mz.shape)
     return OrientationResult(position=np.asarray(position, float), rx_deg=rx, ry_deg=ry,
                              rz_deg=rz, flags=flags)
 
@@ -319,7 +321,7 @@ def orientation_samples(theta_max_deg, angle_step_deg):
 
 
 def total_orientation_workspace(desc, theta_max_deg=(30, 30, 10), step=0.05,
-                                angle_step_deg=10.0, progress=False):
+                                angle_step_deg=10.0, progress=False, without=()):
     """TOW (IV-C): intersection of the COWs over a sampled +-theta_m orientation box.
 
     As in the paper, points found inaccessible are removed and not tested again, so the cost
@@ -334,7 +336,7 @@ def total_orientation_workspace(desc, theta_max_deg=(30, 30, 10), step=0.05,
     for rot in _progress(samples, progress, total=len(samples), desc='TOW'):
         if alive.size == 0:
             break
-        flags = classify_poses(desc, points[alive], rotation_matrix_deg(*rot))
+        flags = classify_poses(desc, points[alive], rotation_matrix_deg(*rot), without=without)
         bad = flags != 0
         for name, count in _first_cause_counts(flags[bad]).items():
             removed[name] += count
@@ -426,7 +428,8 @@ def contains_box(mask, axes, size_m):
 
 # --- workpiece study (IV-D) --------------------------------------------------------------------
 
-def workpiece_study(desc, workpiece, rotation_deg=(0, 0, 0), step=0.02, plane_y=0.0):
+def workpiece_study(desc, workpiece, rotation_deg=(0, 0, 0), step=0.02, plane_y=0.0,
+                    without=()):
     """COW on the vertical plane y = ``plane_y`` with and without a workpiece box (IV-D).
 
     Returns a dict with both flag maps (nx, nz), the accessible percentages, their ratio (the
@@ -438,8 +441,9 @@ def workpiece_study(desc, workpiece, rotation_deg=(0, 0, 0), step=0.02, plane_y=
     xs, zs = axes[0], axes[2]
     points = grid_points([xs, np.array([float(plane_y)]), zs])
     rot = rotation_matrix_deg(*rotation_deg)
-    free = classify_poses(desc.with_workpiece(None), points, rot).reshape(xs.size, zs.size)
-    flags = classify_poses(with_wp, points, rot).reshape(xs.size, zs.size)
+    free = classify_poses(desc.with_workpiece(None), points, rot,
+                          without=without).reshape(xs.size, zs.size)
+    flags = classify_poses(with_wp, points, rot, without=without).reshape(xs.size, zs.size)
     lo, hi = with_wp.workpiece_box
     above = (np.abs(points[:, 0]) <= workpiece[0] / 2).reshape(xs.size, zs.size)
     gap = (points[:, 2] - desc.platform_half_size[2] - hi[2]).reshape(xs.size, zs.size)

@@ -6,7 +6,8 @@ This module only parses arguments; each analysis is a module of its own beside i
 ``DIR/result.json`` and a PNG (``table2`` and ``bench`` print a table and may write JSON).
 
 ``--robot`` defaults to the shipped Neuron description
-(cable_robot_pkg/cdrpm/config/kntu_neuron.yaml).
+(cable_robot_pkg/cdrpm/config/kntu_neuron.yaml), an arrangement fitted to Table II and the TOW
+box (the paper does not publish its anchors).
 """
 from cable_robot_pkg.cdrpm.cli import (
     arrangements,
@@ -31,7 +32,14 @@ def register(subparsers):
     sub.required = True
 
     def robot_arg(p):
-        p.add_argument('--robot', help='robot description YAML (default: shipped Neuron)')
+        p.add_argument('--robot', help='robot description YAML (default: the Neuron '
+                       'arrangement fitted to Table II and the TOW box)')
+
+    def without_arg(p):
+        p.add_argument('--without', action='append', default=[], metavar='NAME',
+                       help='switch a construct off (repeatable): cable_cable, cable_body, '
+                            "cable_workpiece, workpiece_sides (the paper's top-plane test "
+                            'instead of the full box)')
 
     p = sub.add_parser('cow', help='constant-orientation workspace (IV-A, Fig. 6)',
                        description='Accessible centroid positions at one orientation; writes '
@@ -41,6 +49,7 @@ def register(subparsers):
                    help='orientation in degrees (R = Rx Ry Rz)')
     p.add_argument('--step', type=float, default=0.05, help='grid step in m (default 0.05)')
     p.add_argument('--out', required=True, help='output directory')
+    without_arg(p)
     p.set_defaults(func=cow.run)
 
     p = sub.add_parser('table2', help="the paper's Table II beside ours",
@@ -49,6 +58,7 @@ def register(subparsers):
     robot_arg(p)
     p.add_argument('--step', type=float, default=0.05, help='grid step in m (default 0.05)')
     p.add_argument('--out', help='optional directory for result.json')
+    without_arg(p)
     p.set_defaults(func=table2.run)
 
     p = sub.add_parser('orientation', help='orientation workspace at a position (IV-B, Fig. 7)',
@@ -63,6 +73,7 @@ def register(subparsers):
                    help='scan r_x, r_y over +-this many degrees (default 90)')
     p.add_argument('--angle-step', type=float, default=1.0, help='degrees (default 1)')
     p.add_argument('--out', required=True, help='output directory')
+    without_arg(p)
     p.set_defaults(func=orientation.run)
 
     p = sub.add_parser('tow', help='total orientation workspace and largest box (IV-C)',
@@ -76,6 +87,7 @@ def register(subparsers):
     p.add_argument('--angle-step', type=float, default=10.0,
                    help='orientation sampling step in degrees (default 10)')
     p.add_argument('--out', required=True, help='output directory')
+    without_arg(p)
     p.set_defaults(func=tow.run)
 
     p = sub.add_parser('workpiece', help='workpiece study on the plane y = 0 (IV-D)',
@@ -89,6 +101,7 @@ def register(subparsers):
                    metavar=('RX', 'RY', 'RZ'), help='platform orientation in degrees')
     p.add_argument('--step', type=float, default=0.02, help='grid step in m (default 0.02)')
     p.add_argument('--out', required=True, help='output directory')
+    without_arg(p)
     p.set_defaults(func=workpiece.run)
 
     p = sub.add_parser('wrench', help='wrench-closure workspace (beyond the paper)',
@@ -102,7 +115,7 @@ def register(subparsers):
     p.add_argument('--out', required=True, help='output directory')
     p.set_defaults(func=wrench.run)
 
-    p = sub.add_parser('arrangements', help='search cable arrangements (the derived Neuron)',
+    p = sub.add_parser('arrangements', help='search cable arrangements (the fitted Neuron)',
                        description='Search the cable arrangements behind the shipped Neuron for '
                                    'the dimensions of --robot: frame anchors on the frame edges '
                                    '(--pitch), symmetric under the half turns about x, y and z, '
@@ -115,7 +128,7 @@ def register(subparsers):
     p.add_argument('--corners', action='store_true',
                    help='search corner-to-corner pairings instead (zero rotation only)')
     p.add_argument('--table2', action='store_true',
-                   help="identify the Neuron from the paper's results instead: Table II "
+                   help="fit the Neuron to the paper's results instead: Table II "
                         'within 5 points on the in-frame grid and the TOW box 1.2 x 1.2 x 1.4 '
                         'm (the search behind the shipped default; about 5-10 minutes)')
     p.add_argument('--pitch', type=float, default=0.1,

@@ -96,7 +96,8 @@ def _table2_arrangements(args, desc, out):
               f'{r["zero_rotation_both_percent"]:>5.1f}%  {r["shipped_as"] or ""}')
     print('Table II rows 0/0/0, 30/0/0, 0/30/0, 0/0/30, 30/30/30 (paper 100, 97, 97, 85, 71); '
           'worst: largest difference in points; TOW: +-30, +-30, +-10 deg on a 0.1 m grid; '
-          'closed: collision-free and wrench-closed share of the zero-rotation grid')
+          'closed: collision-free and wrench-closed share of the zero-rotation grid; every '
+          'row is an arrangement fitted to Table II and the TOW box')
     if out is not None:
         common.write_outputs(out, {'robot_dimensions_from': desc.source, 'criterion': 'table2',
                              'pitch_m': args.pitch, 'min_home_gap_m': args.min_gap,

@@ -47,7 +47,7 @@ def run(args):
         'speedup_vs_paper': PAPER_SECONDS / t_paper_grid, 'counts': cow.counts,
         'cpu_count': os.cpu_count(),
     }
-    print(f'COW benchmark, robot {desc.name}, rotation {args.rot} deg, all checks '
+    print(f'COW benchmark, robot {common.robot_label(desc)}, rotation {args.rot} deg, all checks '
           f'({desc.checks_per_pose()} per pose, eq. 9): {n} points, median of {args.runs} runs '
           f'{median * 1e3:.1f} ms')
     print(f'  {rate:,.0f} poses/s -> 148,000 points in {t_paper_grid:.3f} s '

@@ -26,6 +26,29 @@ def robot(args):
     return load_description(args.robot)
 
 
+def without(args):
+    """The validated ``--without`` names (constructs switched off), as a frozenset."""
+    from cable_robot_pkg.cdrpm.collisions import check_without
+    try:
+        return check_without(getattr(args, 'without', None) or ())
+    except ValueError as exc:
+        raise UserError(f'--{exc}') from None
+
+
+#: What the shipped default arrangement is, said wherever the output names it.
+FITTED_NOTE = 'arrangement fitted to Table II and the TOW box, not published anchors'
+
+
+def robot_label(desc):
+    """The robot's name, with :data:`FITTED_NOTE` for the shipped fitted Neuron."""
+    from cable_robot_pkg.cdrpm.description import default_description_path
+    try:
+        fitted = Path(desc.source).resolve() == default_description_path().resolve()
+    except (OSError, ValueError):
+        fitted = False
+    return f'{desc.name} ({FITTED_NOTE})' if fitted else desc.name
+
+
 def finite(name, values, lo=None, hi=None):
     values = values if isinstance(values, (list, tuple)) else [values]
     for v in values:

@@ -16,13 +16,16 @@ def run(args):
     desc = common.robot(args)
     common.finite('--rot', args.rot, -180, 180)
     common.check_step(desc, args.step)
+    without = common.without(args)
     out = common.out_dir(args.out)
-    cow = constant_orientation_workspace(desc, args.rot, step=args.step, progress=True)
+    cow = constant_orientation_workspace(desc, args.rot, step=args.step, progress=True,
+                                         without=without)
     result = cow.to_dict(desc)
+    result['without'] = sorted(without)
     result['robot_file'] = desc.source
     fig = cow_figure(desc, cow)
     common.write_outputs(out, result, fig, 'cow.png')
-    print(f'{desc.name}: rotation {args.rot} deg, {result["total_points"]} points, '
+    print(f'{common.robot_label(desc)}: rotation {args.rot} deg, {result["total_points"]} points, '
           f'accessible {result["accessible_percentage"]:.1f} % '
           f'(collision-free {result["collision_free_percentage_in_frame"]:.1f} % of in-frame), '
           f'{result["wall_time_s"]:.3f} s -> {out}/result.json, {out}/cow.png')

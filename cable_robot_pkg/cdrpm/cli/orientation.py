@@ -22,15 +22,17 @@ def run(args):
     common.finite('--rz', args.rz, -180, 180)
     common.finite('--max-angle', args.max_angle, 1, 180)
     common.finite('--angle-step', args.angle_step, 0.05, 45)
+    without = common.without(args)
     out = common.out_dir(args.out)
     res = orientation_workspace(desc, args.position, rz_deg=args.rz,
                                 rx_range=(-args.max_angle, args.max_angle),
                                 ry_range=(-args.max_angle, args.max_angle),
-                                step_deg=args.angle_step)
+                                step_deg=args.angle_step, without=without)
     boundary = res.boundary()
     from cable_robot_pkg.cdrpm.collisions import count_flags
     result = {
         'robot': desc.name, 'robot_file': desc.source, 'position_m': list(args.position),
+        'without': sorted(without),
         'angle_step_deg': args.angle_step, 'max_angle_deg': args.max_angle,
         'per_rz': [{'rz_deg': b['rz'], **count_flags(res.flags[k]),
                     'accessible_percentage': 100.0 * float(np.mean(res.flags[k] == 0)),
@@ -38,6 +40,7 @@ def run(args):
     }
     fig = orientation_figure(desc, res)
     common.write_outputs(out, result, fig, 'orientation.png')
+    print(f'{common.robot_label(desc)}: orientation workspace at {list(args.position)} m')
     for entry in result['per_rz']:
         print(f'r_z = {entry["rz_deg"]:g} deg: {entry["accessible_percentage"]:.1f} % of the '
               f'(r_x, r_y) square accessible')

@@ -13,9 +13,12 @@ def run(args):
     desc = common.robot(args)
     common.check_step(desc, args.step)
     out = common.out_dir(args.out) if args.out else None
-    rows = table2(desc, step=args.step, progress=True)
-    print(f"Table II, robot '{desc.name}' ({desc.source}), grid step {args.step} m, "
-          f'{rows[0]["total_points"]} points per row')
+    without = common.without(args)
+    rows = table2(desc, step=args.step, progress=True, without=without)
+    if without:
+        print(f'constructs switched off: {", ".join(sorted(without))}')
+    print(f'Table II, robot {common.robot_label(desc)} ({desc.source}), '
+          f'grid step {args.step} m, {rows[0]["total_points"]} points per row')
     print(f'{"theta_x":>7} {"theta_y":>7} {"theta_z":>7} | {"paper":>6} {"WARP":>5} | '
           f'{"ours eq10":>9} {"diff":>6} | {"coll-free":>9} {"outside":>8} '
           f'{"cab-cab":>8} {"cab-body":>8}')
@@ -30,5 +33,6 @@ def run(args):
           "coll-free is the share of in-frame points without collision (the paper's checks).")
     if out is not None:
         common.write_outputs(out, {'robot': desc.name, 'robot_file': desc.source,
-                                   'step_m': args.step, 'rows': rows})
+                                   'step_m': args.step, 'without': sorted(without),
+                                   'rows': rows})
     return 0

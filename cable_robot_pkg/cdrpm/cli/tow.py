@@ -17,12 +17,15 @@ def run(args):
     common.finite('--theta', args.theta, 0, 90)
     common.finite('--angle-step', args.angle_step, 0.5, 90)
     common.check_step(desc, args.step)
+    without = common.without(args)
     out = common.out_dir(args.out)
     tow = total_orientation_workspace(desc, args.theta, step=args.step,
-                                      angle_step_deg=args.angle_step, progress=True)
+                                      angle_step_deg=args.angle_step, progress=True,
+                                      without=without)
     box = largest_box(tow.accessible, tow.axes)
     result = {
         'robot': desc.name, 'robot_file': desc.source, 'theta_max_deg': list(args.theta),
+        'without': sorted(without),
         'angle_step_deg': args.angle_step, 'orientations_sampled': int(len(tow.orientations_deg)),
         'grid': {'step_m': args.step, 'shape': list(tow.accessible.shape)},
         'total_points': int(tow.accessible.size),
@@ -34,7 +37,8 @@ def run(args):
     fig = tow_figure(desc, tow, box)
     common.write_outputs(out, result, fig, 'tow.png')
     size = 'none' if box is None else ' x '.join(f'{s:.2f}' for s in box['size_m'])
-    print(f'{desc.name}: TOW for +-{args.theta} deg ({len(tow.orientations_deg)} orientations): '
+    print(f'{common.robot_label(desc)}: TOW for +-{args.theta} deg '
+          f'({len(tow.orientations_deg)} orientations): '
           f'{tow.accessible_percentage:.1f} % of the grid; largest box {size} m '
           f'(paper 1.2 x 1.2 x 1.4 m); {tow.wall_time_s:.1f} s -> {out}/result.json, '
           f'{out}/tow.png')

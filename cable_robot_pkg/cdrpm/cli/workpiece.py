@@ -20,20 +20,23 @@ def run(args):
     common.finite('--size', size, 1e-6)
     common.finite('--rot', args.rot, -180, 180)
     common.check_step(desc, args.step)
+    without = common.without(args)
     out = common.out_dir(args.out)
     try:
-        res = workpiece_study(desc, size, rotation_deg=args.rot, step=args.step)
+        res = workpiece_study(desc, size, rotation_deg=args.rot, step=args.step,
+                              without=without)
     except UserError as exc:
         raise UserError(f'--size {size}: {exc}') from None
     result = {k: v for k, v in res.items() if not k.startswith('flags') and k not in ('x_m',
                                                                                       'z_m')}
     result.update({'robot': desc.name, 'robot_file': desc.source, 'step_m': args.step,
+                   'without': sorted(without),
                    'paper_ratio_percent': 60.0, 'paper_min_gap_m': 0.5})
     fig = workpiece_figure(desc, res)
     common.write_outputs(out, result, fig, 'workpiece.png')
     gap = res['min_gap_above_workpiece_m']
     gap_text = 'none accessible' if gap is None else f'{gap:.3f} m'
-    print(f'{desc.name}: workpiece {size} m on the floor; plane y = 0 accessible '
+    print(f'{common.robot_label(desc)}: workpiece {size} m on the floor; plane y = 0 accessible '
           f'{res["accessible_percentage_with"]:.1f} % vs '
           f'{res["accessible_percentage_without"]:.1f} % without '
           f'({res["ratio_percent"]:.1f} %, paper 60 %); closest platform bottom above '

@@ -43,7 +43,7 @@ def run(args):
     fig = wrench_figure(desc, axes, free.reshape([a.size for a in axes]),
                          closed.reshape([a.size for a in axes]), args.rot)
     common.write_outputs(out, result, fig, 'wrench.png')
-    print(f'{desc.name}: rotation {args.rot} deg: wrench-closed at '
+    print(f'{common.robot_label(desc)}: rotation {args.rot} deg: wrench-closed at '
           f'{result["wrench_closed_percentage"]:.1f} % of the grid; the paper\'s claim (force '
           f'feasible wherever collision-free) holds at '
           f'{result["paper_claim_holds_percentage_of_collision_free"]:.1f} % of the '
