@@ -13,6 +13,7 @@ from cable_robot_pkg.cdrpm.cli import (
     arrangements,
     bench,
     cow,
+    heldout,
     orientation,
     table2,
     tow,
@@ -22,7 +23,10 @@ from cable_robot_pkg.cdrpm.cli import (
 
 
 def register(subparsers):
-    """Add ``paramotion workspace {cow,table2,orientation,tow,workpiece,wrench,bench}``."""
+    """Add ``paramotion workspace {cow,table2,orientation,tow,workpiece,wrench,arrangements,
+    heldout,bench}``."""
+    from paramotion.sweep import add_dask_args
+
     parser = subparsers.add_parser(
         'workspace', help='KNTU CDRPM collision-free workspace (Aref & Taghirad)',
         description='Geometric workspace analysis of a cable-driven redundant parallel '
@@ -138,9 +142,23 @@ def register(subparsers):
     p.add_argument('--step', type=float, default=0.2, help='grid step in m (default 0.2)')
     p.add_argument('--top', type=int, default=12, help='rows to print (default 12)')
     p.add_argument('--out', help='optional directory for result.json')
-    from paramotion.sweep import add_dask_args
     add_dask_args(p)  # candidates evaluated as Dask tasks (docs/sweeps.md)
     p.set_defaults(func=arrangements.run)
+
+    p = sub.add_parser('heldout', help="which arrangements reproduce the paper's held-out "
+                       'figures with the fitted ones',
+                       description='For every edge-anchored candidate of the fit: Fig. 7 trend '
+                                   '(r_y limit against r_x at the centre, and the type that sets '
+                                   'it) and the workpiece share; for those near Table II also '
+                                   'Table II on the 0.05 m grid, the TOW box and a scan of '
+                                   'workpiece sizes. Writes DIR/result.json (about 30 minutes '
+                                   'on one core).')
+    robot_arg(p)
+    p.add_argument('--pitch', type=float, default=0.1,
+                   help='anchor spacing along the frame edges in m (default 0.1)')
+    p.add_argument('--out', required=True, help='output directory')
+    add_dask_args(p)
+    p.set_defaults(func=heldout.run)
 
     p = sub.add_parser('bench', help='COW poses per second with all checks',
                        description="Median wall time of the COW at 30/30/10 deg on a grid of "
