@@ -21,7 +21,7 @@ ALGORITHMS = [
     'cable_robot_pkg.fast.isolation', 'cable_robot_pkg.fast.plant',
     'cable_robot_pkg.cdrpm.description', 'cable_robot_pkg.cdrpm.kinematics',
     'cable_robot_pkg.cdrpm.collisions', 'cable_robot_pkg.cdrpm.workspace',
-    'cable_robot_pkg.cdrpm.wrench_closure',
+    'cable_robot_pkg.cdrpm.wrench_closure', 'cable_robot_pkg.cdrpm.paper_figures',
 ]
 
 

@@ -107,8 +107,21 @@ def test_collision_names_the_pair(graph):
     assert probe.send(graph, (-0.875, 1.5, 0.875)).level == DiagnosticStatus.OK
 
 
+def test_without_cable_cable_lets_the_crossing_pass(graph):
+    """With the cable-cable check switched off the crossing pose is no longer an error."""
+    graph.add(WorkspaceMonitorNode, robot_description=str(CONFIG_DIR / 'kntu_pinwheel.yaml'),
+              without='cable_cable')
+    probe = Probe(graph)
+    _wait_matched(graph, probe)
+    status = probe.send(graph, (-0.875, 1.875, 0.875))
+    assert status.level != DiagnosticStatus.ERROR
+    assert {kv.key: kv.value for kv in status.values}['colliding_pairs'] == ''
+
+
 def test_bad_description_parameter_is_refused(graph, tmp_path):
     with pytest.raises(ParameterError, match='robot_description'):
         graph.add(WorkspaceMonitorNode, robot_description=str(tmp_path / 'missing.yaml'))
     with pytest.raises(ParameterError, match='clearance_warning'):
         graph.add(WorkspaceMonitorNode, clearance_warning=-1.0)
+    with pytest.raises(ParameterError, match="'without': without: unknown construct"):
+        graph.add(WorkspaceMonitorNode, without='cable_cable,cables')

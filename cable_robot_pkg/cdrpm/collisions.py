@@ -416,8 +416,13 @@ def count_flags(flags):
     return counts
 
 
-def check_pose(desc, position, rotation):
-    """Full report of one pose: lengths, pair distances, which pair or body collides."""
+def check_pose(desc, position, rotation, without=()):
+    """Full report of one pose: lengths, pair distances, which pair or body collides.
+
+    ``without`` switches constructs off as in :func:`classify_poses` (the pair distances and
+    clearances are still reported).
+    """
+    without = check_without(without)
     position = np.asarray(position, dtype=float).reshape(3)
     rotation = np.asarray(rotation, dtype=float).reshape(3, 3)
     b_world = position + desc.platform_points @ rotation.T
@@ -434,15 +439,20 @@ def check_pose(desc, position, rotation):
     np.minimum.at(clearance, pj, gap)
     colliding, body, work, plat = [], [], [], False
     if inside:
-        colliding = [(int(i), int(j), float(x)) for i, j, x in zip(pi, pj, dist)
-                     if x < two_eps]
-        body = [int(k) for k in np.nonzero(
-            _body_flags(desc, d[None], lengths[None], rotation)[0])[0]]
-        if desc.workpiece is not None:
+        if 'cable_cable' not in without:
+            colliding = [(int(i), int(j), float(x)) for i, j, x in zip(pi, pj, dist)
+                         if x < two_eps]
+        if 'cable_body' not in without:
+            body = [int(k) for k in np.nonzero(
+                _body_flags(desc, d[None], lengths[None], rotation)[0])[0]]
+        if desc.workpiece is not None and 'cable_workpiece' not in without:
             lo, hi = desc.workpiece_box
             eps = desc.cable_radius
-            hits = segment_box_hit(desc.frame_points, d, lo - eps, hi + eps)
+            box_test = top_plane_hit if 'workpiece_sides' in without else segment_box_hit
+            hits = box_test(desc.frame_points, d, lo - eps, hi + eps)
             work = [int(k) for k in np.nonzero(hits)[0]]
+        if desc.workpiece is not None:
+            lo, hi = desc.workpiece_box
             plat = bool(obb_aabb_overlap(position[None], rotation, desc.platform_half_size,
                                          lo, hi)[0])
     return PoseCheck(inside_frame=inside, lengths=lengths, pair_distance=dist,

@@ -15,8 +15,10 @@ A thin adapter around :mod:`cable_robot_pkg.cdrpm` (Aref & Taghirad's collision 
   coloured by clearance (green clear, yellow below ``clearance_warning``, red colliding) and
   the platform box.
 
-Parameters: ``robot_description`` (YAML path, empty = the shipped Neuron), ``frame_id``,
-``clearance_warning``.
+Parameters: ``robot_description`` (YAML path, empty = the shipped Neuron, an arrangement
+fitted to Table II and the TOW box), ``frame_id``, ``clearance_warning``, ``without``
+(comma-separated constructs switched off: cable_cable, cable_body, cable_workpiece,
+workpiece_sides).
 """
 import math
 
@@ -27,7 +29,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
-from cable_robot_pkg.cdrpm.collisions import check_pose
+from cable_robot_pkg.cdrpm.collisions import CONSTRUCTS, check_pose, check_without
 from cable_robot_pkg.cdrpm.description import load_description
 from cable_robot_pkg.cdrpm.kinematics import quaternion_to_matrix
 from paramotion.errors import ParameterError, UserError
@@ -44,10 +46,13 @@ class WorkspaceMonitorNode(ParamotionNode):
 
     PARAMS = (
         Param('robot_description', '', 'Robot description YAML file (empty: the shipped KNTU '
-              'Neuron, cable_robot_pkg/cdrpm/config/kntu_neuron.yaml).', read_only=True),
+              'Neuron, cable_robot_pkg/cdrpm/config/kntu_neuron.yaml, fitted to Table II and '
+              'the TOW box).', read_only=True),
         Param('frame_id', 'map', 'Frame of the fixed frame A for the markers and lengths.'),
         Param('clearance_warning', 0.02, 'Warn when two cables come closer than this surface '
               'gap (m).', min=0.0, max=1.0),
+        Param('without', '', 'Comma-separated constructs switched off (ablation): '
+              + ', '.join(CONSTRUCTS) + '.', read_only=True),
     )
 
     def __init__(self, node_name='workspace_monitor', **kwargs):
@@ -56,6 +61,11 @@ class WorkspaceMonitorNode(ParamotionNode):
             self.desc = load_description(self.params.robot_description or None)
         except UserError as exc:
             raise ParameterError(f"{node_name}: parameter 'robot_description': {exc}") from None
+        try:
+            self.without = check_without(
+                [w.strip() for w in self.params.without.split(',') if w.strip()])
+        except ValueError as exc:
+            raise ParameterError(f"{node_name}: parameter 'without': {exc}") from None
         self.names = [f'cable_{i + 1}' for i in range(self.desc.n_cables)]
         self.lengths_pub = self.create_publisher(JointState, '/cdrpm/cable_lengths', STATE_QOS)
         self.status_pub = self.create_publisher(DiagnosticArray, '/cdrpm/workspace_status',
@@ -78,7 +88,7 @@ class WorkspaceMonitorNode(ParamotionNode):
             self._publish_status(msg, DiagnosticStatus.ERROR, f'invalid pose: {exc}',
                                  {'state': 'invalid_pose'})
             return
-        report = check_pose(self.desc, position, rotation)
+        report = check_pose(self.desc, position, rotation, self.without)
         if not report.inside_frame:
             self._publish_status(msg, DiagnosticStatus.ERROR,
                                  'outside frame: the platform does not fit inside the fixed '
