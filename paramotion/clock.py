@@ -52,6 +52,9 @@ class ClockSourceNode(ParamotionNode):
         self._period_ns = int(round(self.params.publish_period * NS))
         self._clock_pub = self.create_publisher(ClockMsg, '/clock', CLOCK_QOS)
         self._wall_timer = None
+        #: Called with each ``/clock`` message right after it is published (a lock-step
+        #: :class:`paramotion.graph.Graph` sets its nodes' clocks this way).
+        self.clock_hooks = []
         self._waiting = (self.params.wait_for_clock_subscribers > 0
                          or any(self.params.wait_for_matched))
         if not self.params.lockstep:
@@ -110,7 +113,10 @@ class ClockSourceNode(ParamotionNode):
         """Advance simulated time by one period, then publish ``/clock`` and state."""
         self.advance_time(self._period_ns)
         self.sim_time_ns += self._period_ns
-        self._clock_pub.publish(ClockMsg(clock=self.stamp()))
+        msg = ClockMsg(clock=self.stamp())
+        self._clock_pub.publish(msg)
+        for hook in self.clock_hooks:
+            hook(msg)
         self.publish_state()
 
     def advance_time(self, period_ns):

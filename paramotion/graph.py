@@ -19,9 +19,28 @@ from rclpy.executors import (
     SingleThreadedExecutor,
     TimeoutException,
 )
+from rclpy.experimental.events_executor import EventsExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+from rclpy.subscription import Subscription
 
 from paramotion.clock import ClockSourceNode
 from paramotion.node import overrides_from_dict
+
+#: How a Graph drains its callbacks: ``lockstep`` (a ``SingleThreadedExecutor`` whose ready
+#: callbacks the Graph runs itself, in that executor's order, see :class:`LockstepDrain`),
+#: ``single_threaded`` (the same executor's own ``wait_for_ready_callbacks``) or ``events``
+#: (rclpy's ``EventsExecutor``).
+EXECUTORS = ('lockstep', 'single_threaded', 'events')
+DEFAULT_EXECUTOR = 'lockstep'
+
+
+def make_executor(kind, context):
+    """A new rclpy executor for ``kind`` (one of :data:`EXECUTORS`) on ``context``."""
+    if kind == 'events':
+        return EventsExecutor(context=context)
+    if kind in ('single_threaded', 'lockstep'):
+        return SingleThreadedExecutor(context=context)
+    raise ValueError(f'executor {kind!r}: expected one of {", ".join(EXECUTORS)}')
 
 
 def private_domain_id():
@@ -60,10 +79,14 @@ class Graph:
 
     By default (``domain_id`` None and no ``ROS_DOMAIN_ID`` set) the graph is private: a random
     domain with discovery off, heard by nobody else. Set ``ROS_DOMAIN_ID`` (or pass
-    ``domain_id``) to watch a run live from other processes.
+    ``domain_id``) to watch a run live from other processes. ``executor`` is one of
+    :data:`EXECUTORS` (default :data:`DEFAULT_EXECUTOR`).
     """
 
-    def __init__(self, domain_id=None, max_callbacks_per_drain=200_000):
+    def __init__(self, domain_id=None, max_callbacks_per_drain=200_000, executor=None):
+        kind = executor or DEFAULT_EXECUTOR
+        if kind not in EXECUTORS:
+            raise ValueError(f'executor {kind!r}: expected one of {", ".join(EXECUTORS)}')
         private = domain_id is None and not os.environ.get('ROS_DOMAIN_ID', '').strip()
         if domain_id is None:
             domain_id = private_domain_id()
@@ -71,10 +94,14 @@ class Graph:
         self.private = private
         self.context = rclpy.Context()
         _init_context(self.context, domain_id, private)
-        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor_kind = kind
+        self.executor = make_executor(kind, self.context)
+        self._lockstep = LockstepDrain(self.executor, self.context)
         self.nodes = []
         self.max_callbacks_per_drain = max_callbacks_per_drain
         self.callbacks_run = 0
+        self._direct_time = []      # time sources whose node's clock the Graph sets itself
+        self._direct_source = None
 
     def add(self, node_cls, *, name=None, namespace=None, remappings=None, **params):
         """Create ``node_cls`` in this graph with parameter overrides ``params``.
@@ -117,36 +144,81 @@ class Graph:
         return recorder
 
     def drain(self):
-        """Run ready callbacks until a whole wait finds nothing ready; returns how many ran.
+        """Run ready callbacks until nothing is left to run; returns how many handlers ran.
 
-        One zero-timeout wait yields at most one callback per entity (one message per
-        subscription) and then reports a timeout *even if it yielded work*, so a single timeout
-        does not mean the executor is idle: only a wait round that yields nothing does. A burst
-        of N messages on one subscription therefore takes N rounds, all within this call.
+        Callbacks run by a drain may make others ready (a timer publishes, a subscription
+        answers), and those run in the same drain, so one lock-step period carries every chain
+        of messages it starts. The count is the executor's: callbacks for the waitset executor,
+        queued events (messages, timer dispatches, clock updates) for the events executor.
+        """
+        if self.executor_kind == 'events':
+            count = self._drain_events()
+        elif self.executor_kind == 'lockstep':
+            count = self._lockstep.drain(self._check_runaway)
+        else:
+            count = self._drain_waitset()
+        self.callbacks_run += count
+        return count
+
+    def _check_runaway(self, count):
+        if count > self.max_callbacks_per_drain:
+            raise RuntimeError(
+                f'executor did not drain after {count} callbacks: a callback keeps '
+                'itself ready (zero-period wall timer or publish loop?)')
+
+    def _drain_events(self):
+        """EventsExecutor: every event is one handler on a FIFO queue and one ``spin_once`` runs
+        exactly one of them. A marker task is queued behind the events; the spins until it has
+        run are the events ahead of it (and the marker). Events those handlers queued sit
+        behind the marker, so the round repeats until a marker is the only handler of its
+        round. A timer made due by the new simulated time is queued by the executor's timer
+        thread, not by the thread that set the time, so an idle round with a due timer waits
+        for its event instead of ending the drain (else the timer would fire one period late).
         """
         count = 0
         while True:
+            marker = []
+            self.executor.create_task(marker.append, True)
             ran = 0
             try:
-                while True:
-                    handler, _, _ = self.executor.wait_for_ready_callbacks(timeout_sec=0.0)
-                    handler()
-                    if handler.exception() is not None:
-                        raise handler.exception()
+                while not marker:
+                    self.executor.spin_once(timeout_sec=0.0)
+                    ran += 1
+                if ran == 1 and self._timer_due():
+                    self._await_event()
                     ran += 1
             except (ShutdownException, ExternalShutdownException):
                 break
-            except TimeoutException:
-                pass
+            count += ran - 1
+            if ran == 1:
+                break
+            self._check_runaway(count)
+        return count
+
+    def _timer_due(self):
+        """True when a timer of one of this graph's nodes is due and has not run yet."""
+        return any(timer.is_ready() for node in self.nodes for timer in node.timers)
+
+    def _await_event(self, limit_s=5.0):
+        """Run events as they arrive until no timer is due (at most ``limit_s`` s of wall time).
+        """
+        end = time.monotonic() + limit_s
+        while self._timer_due():
+            if time.monotonic() > end:
+                raise RuntimeError(f'a due timer was not dispatched within {limit_s} s')
+            self.executor.spin_once(timeout_sec=0.001)
+
+    def _drain_waitset(self):
+        """SingleThreadedExecutor: wait rounds (:func:`rclpy_wait_round`) until one runs
+        nothing. A burst of N messages on one subscription therefore takes N rounds, all
+        within this call."""
+        count = 0
+        while True:
+            ran = rclpy_wait_round(self.executor)
             count += ran
             if ran == 0:
-                break
-            if count > self.max_callbacks_per_drain:
-                raise RuntimeError(
-                    f'executor did not drain after {count} callbacks: a callback keeps '
-                    'itself ready (zero-period wall timer or publish loop?)')
-        self.callbacks_run += count
-        return count
+                return count
+            self._check_runaway(count)
 
     def run_lockstep(self, clock_source, until=None, max_sim_time=None, on_step=None):
         """Advance ``clock_source`` period by period, draining the executor after each.
@@ -156,6 +228,7 @@ class Graph:
         """
         if not clock_source.params.lockstep:
             raise ValueError(f'{clock_source.get_name()}: lockstep parameter is false')
+        self._set_time_directly(clock_source)
         self.drain()
         while True:
             if until is not None and until():
@@ -166,6 +239,36 @@ class Graph:
             self.drain()
             if on_step is not None:
                 on_step()
+
+    def _set_time_directly(self, clock_source):
+        """Let ``clock_source`` set the simulated time of this graph's nodes itself.
+
+        Each node on sim time normally learns the time from its own ``/clock`` subscription:
+        one message taken and one callback per node per period. In lock-step the Graph knows
+        the time when the source publishes it, so it hands each node's time source the same
+        message directly and drops those subscriptions (``/clock`` is still published, for the
+        recorder and for anyone watching). The callbacks see the same time: a node's ``/clock``
+        subscription is its first, so the waitset executor ran it before the node's other
+        callbacks of that period.
+        """
+        if self._direct_source is not clock_source:
+            if self._direct_source is not None:
+                self._direct_source.clock_hooks.remove(self._deliver_time)
+            clock_source.clock_hooks.append(self._deliver_time)
+            self._direct_source = clock_source
+        for node in self.nodes:
+            source = getattr(node, '_time_source', None)
+            if source is None or source in self._direct_time or \
+                    source._clock_sub is None or not source.ros_time_is_active:
+                continue
+            node.destroy_subscription(source._clock_sub)
+            source._clock_sub = None
+            self._direct_time.append(source)
+
+    def _deliver_time(self, msg):
+        for source in self._direct_time:
+            if source.ros_time_is_active:
+                source.clock_callback(msg)
 
     def spin_wall(self, seconds, until=None):
         """Spin on wall-clock time (free-running sources, DDS peers) for ``seconds``."""
@@ -193,3 +296,154 @@ class Graph:
 
     def __exit__(self, *exc):
         self.shutdown()
+
+
+class LockstepDrain:
+    """Drain a ``SingleThreadedExecutor`` in its own order, without its per-callback machinery.
+
+    ``SingleThreadedExecutor.wait_for_ready_callbacks`` rebuilds its wait set from every entity
+    on every call and wraps each callback in a ``Task`` coroutine; in a lock-step graph that
+    machinery cost more than the callbacks. One round here is one of its zero-timeout waits
+    done once: the same entities in the same order (the executor's nodes as it lists them;
+    waitables, then per node its timers, subscriptions, guard conditions, clients and
+    services), the same ready test, and each message taken just before its callback runs, so
+    the callbacks run in the same order with the same messages. Timers and subscriptions (the
+    hot path) are called directly; the rare waitables, clients and services go through the
+    executor's own handlers. The wait set is reused while the entities stay the same.
+    """
+
+    def __init__(self, executor, context):
+        self.executor = executor
+        self.context = context
+        self._key = None
+        self._wait_set = None
+
+    def drain(self, check_runaway):
+        """Run rounds until one finds nothing ready; returns how many callbacks ran."""
+        count = 0
+        while True:
+            ran = self._round()
+            count += ran
+            if ran == 0:
+                return count
+            check_runaway(count)
+
+    def _fallback_needed(self, nodes):
+        ex = self.executor
+        with ex._tasks_lock:
+            pending = any(not t.done() for t, _, _ in ex._tasks)
+        return pending or any(True for node in nodes for _ in node.guards)
+
+    def _round(self):
+        ex = self.executor
+        nodes = ex.get_nodes()
+        if ex._is_shutdown or not self.context.ok():
+            return 0
+        if self._fallback_needed(nodes):
+            return self._rclpy_round()
+        per_node = [(node, list(node.timers), list(node.subscriptions), list(node.clients),
+                     list(node.services), list(node.waitables)) for node in nodes]
+        ws = self._fill_wait_set(per_node)
+        ws.wait(0)
+        subs_ready = set(ws.get_ready_entities('subscription'))
+        timers_ready = set(ws.get_ready_entities('timer'))
+        clients_ready = set(ws.get_ready_entities('client'))
+        services_ready = set(ws.get_ready_entities('service'))
+        ran = 0
+        ready_waitables = [(wt, node) for node, *_, waitables in per_node
+                           for wt in waitables if wt.is_ready(ws)]
+        for wt, node in ready_waitables:
+            ran += self._run_handler(wt, node, ex._take_waitable)
+        for node, timers, subs, clients, services, _ in per_node:
+            for tmr in timers:
+                if tmr.handle.pointer in timers_ready and tmr.handle.is_timer_ready():
+                    tmr.handle.call_timer()
+                    tmr.callback()
+                    ran += 1
+            for sub in subs:
+                if sub.handle.pointer in subs_ready:
+                    msg_info = sub.handle.take_message(sub.msg_type, sub.raw)
+                    if msg_info is not None:
+                        if sub._callback_type is Subscription.CallbackType.MessageOnly:
+                            sub.callback(msg_info[0])
+                        else:
+                            sub.callback(*msg_info)
+                    ran += 1
+            for client in clients:
+                if client.handle.pointer in clients_ready:
+                    ran += self._run_handler(client, node, ex._take_client)
+            for srv in services:
+                if srv.handle.pointer in services_ready:
+                    ran += self._run_handler(srv, node, ex._take_service)
+        return ran
+
+    def _fill_wait_set(self, per_node):
+        key = tuple(id(e) for entry in per_node for group in entry[1:] for e in group)
+        if key != self._key:
+            counts = [0, 0, 0, 0, 0, 0]   # subs, guards, timers, clients, services, events
+            for _, timers, subs, clients, services, waitables in per_node:
+                counts[0] += len(subs)
+                counts[2] += len(timers)
+                counts[3] += len(clients)
+                counts[4] += len(services)
+                for wt in waitables:
+                    n = wt.get_num_entities()
+                    counts[0] += n.num_subscriptions
+                    counts[1] += n.num_guard_conditions
+                    counts[2] += n.num_timers
+                    counts[3] += n.num_clients
+                    counts[4] += n.num_services
+                    counts[5] += n.num_events
+            self._wait_set = _rclpy.WaitSet(*counts, self.context.handle)
+            self._key = key
+        ws = self._wait_set
+        ws.clear_entities()
+        for _, timers, subs, clients, services, waitables in per_node:
+            for sub in subs:
+                ws.add_subscription(sub.handle)
+            for client in clients:
+                ws.add_client(client.handle)
+            for srv in services:
+                ws.add_service(srv.handle)
+            for tmr in timers:
+                ws.add_timer(tmr.handle)
+            for wt in waitables:
+                wt.add_to_wait_set(ws)
+        return ws
+
+    def _run_handler(self, entity, node, take):
+        """Run one callback through the executor's own handler (as its spin would)."""
+        ex = self.executor
+        handler = ex._make_handler(entity, node, take)
+        handler()
+        with ex._tasks_lock:
+            ex._tasks = [t for t in ex._tasks if not t[0].done()]
+        if handler.exception() is not None:
+            raise handler.exception()
+        return 1
+
+    def _rclpy_round(self):
+        """One round of the executor's own wait (pending coroutine tasks or guard conditions,
+        which the direct round does not handle)."""
+        return rclpy_wait_round(self.executor)
+
+
+def rclpy_wait_round(executor):
+    """Run the callbacks of one zero-timeout ``wait_for_ready_callbacks`` round; returns how
+    many ran (0 also after a shutdown).
+
+    One zero-timeout wait yields at most one callback per entity (one message per
+    subscription) and then reports a timeout *even if it yielded work*, so a single timeout
+    does not mean the executor is idle: only a round that yields nothing does.
+    """
+    ran = 0
+    try:
+        while True:
+            handler, _, _ = executor.wait_for_ready_callbacks(timeout_sec=0.0)
+            handler()
+            if handler.exception() is not None:
+                raise handler.exception()
+            ran += 1
+    except (ShutdownException, ExternalShutdownException, TimeoutException):
+        pass
+    return ran

@@ -118,16 +118,23 @@ def test_drain_delivers_every_message_of_a_burst():
         assert got == [float(i) for i in range(16)]
 
 
-def test_sim_time_timers_fire_on_time_with_the_new_clock():
-    """A 0.1 s sim-time timer in a graph stepped every 0.01 s runs at 0.1, 0.2, ... and sees
-    exactly that time (not the previous step's clock)."""
+def ticker_class(period):
+    """A sim-time node recording the clock time of each tick of a ``period`` s timer."""
     from paramotion.node import ParamotionNode
 
     class Ticker(ParamotionNode):
         def __init__(self, **kwargs):
             super().__init__('ticker', **kwargs)
             self.times = []
-            self.create_timer(0.1, lambda: self.times.append(self.get_clock().now().nanoseconds))
+            self.create_timer(period, lambda: self.times.append(
+                self.get_clock().now().nanoseconds))
+    return Ticker
+
+
+def test_sim_time_timers_fire_on_time_with_the_new_clock():
+    """A 0.1 s sim-time timer in a graph stepped every 0.01 s runs at 0.1, 0.2, ... and sees
+    exactly that time (not the previous step's clock)."""
+    Ticker = ticker_class(0.1)
 
     with Graph() as graph:
         sim = graph.add(SmokeSimNode, publish_period=0.01)
@@ -159,3 +166,63 @@ def test_private_graph_is_not_heard_from_outside(monkeypatch):
         finally:
             rclpy.try_shutdown(context=outside)
         assert not heard
+
+
+def _smoke_bag(bag, executor):
+    with Graph(executor=executor) as graph:
+        sim = graph.add(SmokeSimNode)
+        graph.add(SmokeRangeSensorNode, noise_std=0.01)
+        graph.add(SmokeControllerNode)
+        graph.record(bag, ['/clock', '/smoke/range', '/smoke/cmd_vel', '/smoke/ground_truth'])
+        graph.run_lockstep(sim, max_sim_time=1.5)
+        return graph.callbacks_run
+
+
+def test_lockstep_drain_records_what_the_single_threaded_executor_does(tmp_path):
+    """The Graph's own drain runs the same callbacks in the same order as rclpy's
+    SingleThreadedExecutor: every recorded message, with its receive time, is identical."""
+    runs = {kind: _smoke_bag(tmp_path / kind, kind) for kind in ('single_threaded', 'lockstep')}
+    assert runs['lockstep'] > 0
+    for topic in ['/clock', '/smoke/range', '/smoke/cmd_vel', '/smoke/ground_truth']:
+        a = [(m.log_time_ns, m.data) for m in read_messages(tmp_path / 'single_threaded', [topic])]
+        b = [(m.log_time_ns, m.data) for m in read_messages(tmp_path / 'lockstep', [topic])]
+        assert a == b and a, topic
+
+
+def test_lockstep_graph_sets_node_clocks_without_their_clock_subscriptions():
+    """In lock-step the Graph hands each node the new time: the nodes' own /clock
+    subscriptions are gone, /clock is still published, and a sim-time timer still fires at
+    exactly its period."""
+    Ticker = ticker_class(0.05)
+
+    with Graph() as graph:
+        sim = graph.add(SmokeSimNode)
+        ticker = graph.add(Ticker)
+        assert '/clock' in [s.topic_name for s in ticker.subscriptions]
+        graph.run_lockstep(sim, max_sim_time=0.2)
+        assert '/clock' not in [s.topic_name for s in ticker.subscriptions]
+        assert sim.get_publishers_info_by_topic('/clock')
+    assert ticker.times == [50_000_000, 100_000_000, 150_000_000, 200_000_000]
+
+
+def test_events_executor_runs_the_smoke_graph_on_time():
+    """The EventsExecutor option: sim-time timers fire in the period they are due (the drain
+    waits for the timer events its clock thread queues), and the controller stops the cart."""
+    Ticker = ticker_class(0.1)
+
+    with Graph(executor='events') as graph:
+        sim = graph.add(SmokeSimNode)
+        graph.add(SmokeRangeSensorNode)
+        ctl = graph.add(SmokeControllerNode)
+        ticker = graph.add(Ticker)
+        graph.run_lockstep(sim, max_sim_time=8.0)
+        assert ctl.state == 'tracking'
+        assert abs(sim.cart_x - (5.0 - 0.2 - 1.0)) < 0.05
+    assert ticker.times[:3] == [100_000_000, 200_000_000, 300_000_000]
+    assert len(ticker.times) == 80
+
+
+def test_unknown_executor_is_refused():
+    import pytest
+    with pytest.raises(ValueError, match='executor'):
+        Graph(executor='threads')
