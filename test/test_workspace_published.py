@@ -54,13 +54,29 @@ def test_published_table_marks_fitted_and_held_out(neuron):
     use = {r['figure']: r['use'] for r in res['rows']}
     fitted = [f for f, u in use.items() if u == 'fitted']
     assert len(fitted) == 6 and all('in frame' in f or 'TOW +-30/30/10' in f for f in fitted)
-    assert len(res['rows']) == 19
+    assert len(res['rows']) == 21
     # Fitted figures agree by construction; the held-out Fig. 7 trend does not.
     assert all(r['agrees'] for r in res['rows'] if r['use'] == 'fitted')
     assert not res['fig7_verdict']['shrinks']
+    # About the fixed axes the limit shrinks, but cable-cable contact still sets it.
+    assert res['fig7_fixed_verdict']['shrinks']
+    assert res['fig7_fixed_verdict']['decided_high'] == 'cable_cable'
     # The workpiece removes positions by cable-workpiece contact, not by the other types.
     lost = res['workpiece']['lost_percent']
     assert lost['cable_workpiece'] > 50 and lost['cable_cable'] == lost['cable_body'] == 0
+
+
+def test_fig7_rotation_conventions():
+    """Moving axes: Rx Ry Rz (as the rest of the package); fixed axes: Rz Ry Rx."""
+    from cable_robot_pkg.cdrpm.kinematics import rotation_matrix_deg
+    moving = pf.fig7_rotations(20.0, 35.0, 10.0)
+    fixed = pf.fig7_rotations(20.0, 35.0, 10.0, axes='fixed')
+    np.testing.assert_allclose(moving, rotation_matrix_deg(20, 35, 10))
+    np.testing.assert_allclose(fixed, rotation_matrix_deg(0, 0, 10) @ rotation_matrix_deg(
+        0, 35, 0) @ rotation_matrix_deg(20, 0, 0))
+    assert np.abs(moving - fixed).max() > 0.1
+    with pytest.raises(ValueError, match='axes'):
+        pf.fig7_rotations(0, 0, 0, axes='xyz')
 
 
 def test_perturbed_anchors_stay_in_the_frame_and_move(neuron):
@@ -73,9 +89,10 @@ def test_perturbed_anchors_stay_in_the_frame_and_move(neuron):
 
 def test_summarise_heldout_counts_overlaps():
     def row(shrinks, body, share, gap, worst=None, tow=False, sizes=()):
-        r = {'screen_worst': 9.0 if worst is None else worst,
-             'fig7': {'shrinks': shrinks, 'body_decides': body,
-                      'decided_high': 'cable_body' if body else 'cable_cable'},
+        fig7 = {'shrinks': shrinks, 'body_decides': body,
+                'decided_high': 'cable_body' if body else 'cable_cable'}
+        r = {'screen_worst': 9.0 if worst is None else worst, 'fig7': fig7,
+             'fig7_fixed': {**fig7, 'shrinks': True},
              'workpiece_share': share, 'workpiece_gap_m': gap}
         if worst is not None:
             r.update({'table2_worst': worst, 'tow_box_fits': tow,
@@ -93,6 +110,8 @@ def test_summarise_heldout_counts_overlaps():
     assert s['fitted_with_fig7_trend'] == 1 and s['fitted_with_workpiece_60_some_size'] == 1
     assert s['fitted_with_both'] == 0
     assert s['best_table2_screen_with_fig7_trend'] == 4.0
+    assert s['fig7_fixed_shrinks'] == 5 and s['fig7_fixed_shrinks_by_cable_body'] == 2
+    assert s['fitted_with_fig7_fixed_trend'] == 1
 
 
 @pytest.mark.slow

@@ -104,15 +104,33 @@ class Fig7Row:
     decided_by: str
 
 
+def fig7_rotations(rx, ry, rz, axes: str = 'moving') -> np.ndarray:
+    """Rotation matrices for Fig. 7 angles (degrees, broadcast), (..., 3, 3).
+
+    ``'moving'``: R = Rx(r_x) Ry(r_y) Rz(r_z), about the moving x, y', z'' axes (the convention
+    of IV-C and of the rest of the package); ``'fixed'``: R = Rz(r_z) Ry(r_y) Rx(r_x), about the
+    fixed axes. The paper does not say which one Fig. 7 uses.
+    """
+    if axes == 'moving':
+        return rotation_matrix_deg(rx, ry, rz)
+    if axes != 'fixed':
+        raise ValueError(f"axes {axes!r}: must be 'moving' or 'fixed'")
+    zero = np.zeros(np.broadcast(rx, ry, rz).shape)
+    return (rotation_matrix_deg(zero, zero, zero + rz) @ rotation_matrix_deg(zero, zero + ry,
+                                                                          zero)
+            @ rotation_matrix_deg(zero + rx, zero, zero))
+
+
 def fig7_trend(desc: RobotDescription, position=(0.0, 0.0, 0.0), rx_deg=FIG7_RX_DEG,
                rz_deg=FIG7_RZ_DEG, step_deg: float = 1.0, max_deg: float = 90.0,
-               without=()) -> list:
+               without=(), axes: str = 'moving') -> list:
     """Orientation workspace of IV-B read as Fig. 7's curves: the r_y limit per (r_z, r_x).
 
     r_y is scanned outwards from 0 in ``step_deg`` steps on both sides; the limit is the last
     accessible r_y of the side that ends first, and ``decided_by`` the collision type(s) of
     the first inaccessible r_y there ('range' if the scan ends first). ``without`` switches
-    constructs off (:func:`classify_poses`).
+    constructs off (:func:`classify_poses`); ``axes`` chooses the rotation convention
+    (:func:`fig7_rotations`).
     """
     ry = np.arange(0.0, max_deg + step_deg / 2, step_deg)
     out = []
@@ -120,7 +138,7 @@ def fig7_trend(desc: RobotDescription, position=(0.0, 0.0, 0.0), rx_deg=FIG7_RX_
         for rx in rx_deg:
             limits = []
             for sign in (1.0, -1.0):
-                rots = rotation_matrix_deg(np.full(ry.size, rx), sign * ry, np.full(ry.size, rz))
+                rots = fig7_rotations(np.full(ry.size, rx), sign * ry, np.full(ry.size, rz), axes)
                 pos = np.broadcast_to(np.asarray(position, float), (ry.size, 3))
                 flags = classify_poses(desc, pos, rots, without=without)
                 blocked = np.nonzero(flags != 0)[0]
@@ -190,6 +208,8 @@ def published_table(desc: RobotDescription, quick: bool = False) -> dict:
     tow = tow_measures(desc, step=step)
     trend = fig7_trend(desc, step_deg=2.0 if quick else 1.0)
     verdict = fig7_verdict(trend)
+    fixed = fig7_verdict(fig7_trend(desc, rx_deg=(0.0, 45.0), rz_deg=(0.0, 30.0),
+                                    step_deg=2.0 if quick else 1.0, axes='fixed'))
     work = workpiece_measures(desc, step=0.04 if quick else 0.02)
     c90 = claim_90(desc, step)
     rows = []
@@ -208,13 +228,14 @@ def published_table(desc: RobotDescription, quick: bool = False) -> dict:
                      f'{"yes" if tow["box_fits"] else "no"} (largest '
                      f'{" x ".join(f"{v:.2f}" for v in tow["largest_box_m"] or [])} m)',
                      'fitted', tow['box_fits']))
-    rows.append(_row('Fig. 7: r_y limit shrinks as r_x grows (r_z = 0)', 'shrinks',
-                     f'{verdict["ry_limit_low"]:.0f} deg at r_x = 0 -> '
-                     f'{verdict["ry_limit_high"]:.0f} deg at r_x = 45',
-                     'held out', verdict['shrinks']))
-    rows.append(_row('Fig. 7: cable-body contact sets that limit', 'cable-body',
-                     verdict['decided_high'].replace('_', '-'), 'held out',
-                     verdict['body_decides']))
+    for name, v in (('moving axes', verdict), ('fixed axes', fixed)):
+        rows.append(_row(f'Fig. 7 ({name}): r_y limit shrinks as r_x grows (r_z = 0)',
+                         'shrinks', f'{v["ry_limit_low"]:.0f} deg at r_x = 0 -> '
+                         f'{v["ry_limit_high"]:.0f} deg at r_x = 45', 'held out', v['shrinks'],
+                         'the paper does not give the convention' if name == 'fixed axes'
+                         else 'R = Rx Ry Rz, as IV-C'))
+        rows.append(_row(f'Fig. 7 ({name}): cable-body contact sets that limit', 'cable-body',
+                         v['decided_high'].replace('_', '-'), 'held out', v['body_decides']))
     rows.append(_row(f'Fig. 7: with r_z = {verdict["rz_max"]:g}, cable-cable comes first',
                      'cable-cable', verdict['decided_at_rz_max'].replace('_', '-'), 'held out',
                      verdict['cable_first_with_rz']))
@@ -240,6 +261,7 @@ def published_table(desc: RobotDescription, quick: bool = False) -> dict:
                      'held out', tow['cube_fits']))
     return {'rows': rows, 'table2': t2, 'tow': tow,
             'fig7': [r.__dict__ for r in trend], 'fig7_verdict': verdict,
+            'fig7_fixed_verdict': fixed,
             'workpiece': work, 'claim_90': c90, 'step_m': step}
 
 
@@ -267,6 +289,8 @@ def sensitivity_figures(desc: RobotDescription, step: float, angle_step_deg: flo
                                       angle_step_deg=angle_step_deg)
     verdict = fig7_verdict(fig7_trend(desc, rx_deg=(0.0, 45.0), rz_deg=(0.0, 30.0),
                                       step_deg=fig7_step_deg))
+    fixed = fig7_verdict(fig7_trend(desc, rx_deg=(0.0, 45.0), rz_deg=(0.0, 30.0),
+                                    step_deg=fig7_step_deg, axes='fixed'))
     work = workpiece_measures(desc, step=plane_step)
     c90 = claim_90(desc, step)
     out = {}
@@ -280,6 +304,10 @@ def sensitivity_figures(desc: RobotDescription, step: float, angle_step_deg: flo
     out['Fig. 7 r_y limit at r_x = 45 (deg)'] = verdict['ry_limit_high']
     out['Fig. 7 limit shrinks (share of samples)'] = float(verdict['shrinks'])
     out['Fig. 7 cable-body sets it (share of samples)'] = float(verdict['body_decides'])
+    out['Fig. 7 fixed axes: r_y limit at r_x = 45 (deg)'] = fixed['ry_limit_high']
+    out['Fig. 7 fixed axes: limit shrinks (share of samples)'] = float(fixed['shrinks'])
+    out['Fig. 7 fixed axes: cable-body sets it (share of samples)'] = float(
+        fixed['body_decides'])
     out['workpiece share (%)'] = work['share']
     out['workpiece closest approach (m)'] = np.nan if work['gap_m'] is None else work['gap_m']
     out['30/30/10 in frame (%)'] = c90['in_frame']
@@ -325,10 +353,11 @@ WORKPIECE_SIZES_M = tuple((w, w, h) for w in (0.4, 0.6, 0.8, 1.0, 1.2, 1.4)
 def _heldout_case(case):
     """Fig. 7 verdict and workpiece share of one candidate (for :func:`heldout_search`)."""
     desc, plane_step, fig7_step = case
-    verdict = fig7_verdict(fig7_trend(desc, rx_deg=(0.0, 45.0), rz_deg=(0.0, 30.0),
-                                      step_deg=fig7_step))
+    verdicts = [fig7_verdict(fig7_trend(desc, rx_deg=(0.0, 45.0), rz_deg=(0.0, 30.0),
+                                        step_deg=fig7_step, axes=axes))
+                for axes in ('moving', 'fixed')]
     work = workpiece_study(desc, WORKPIECE_M, step=plane_step)
-    return verdict, work['ratio_percent'], work['min_gap_above_workpiece_m']
+    return verdicts, work['ratio_percent'], work['min_gap_above_workpiece_m']
 
 
 def _fitted_case(case):
@@ -357,7 +386,8 @@ def heldout_search(desc: RobotDescription, pitch: float = 0.1, min_home_gap: flo
 
     Candidates: those of the fit (:func:`cable_robot_pkg.cdrpm.arrangements._home_candidates`,
     the dimensions of ``desc``). For every candidate: Fig. 7's verdict (:func:`fig7_verdict`)
-    and the workpiece share at :data:`WORKPIECE_M`. For those near Table II on the
+    under both rotation conventions (:func:`fig7_rotations`) and the workpiece share at
+    :data:`WORKPIECE_M`. For those near Table II on the
     ``screen_step`` grid: Table II on the 0.05 m grid, the TOW box, and the workpiece share over
     :data:`WORKPIECE_SIZES_M`. Returns counts and the per-candidate rows.
     """
@@ -375,10 +405,11 @@ def heldout_search(desc: RobotDescription, pitch: float = 0.1, min_home_gap: flo
     screen = grid_points(grid_axes(desc, screen_step))
     heldout = map_cases(_heldout_case, [(c[2], plane_step, fig7_step) for c in cands])
     rows = []
-    for (a0, a1, cdesc, _), (verdict, share, gap) in zip(cands, heldout):
+    for (a0, a1, cdesc, _), (verdicts, share, gap) in zip(cands, heldout):
         worst = float(np.max(np.abs(table2_in_frame(cdesc, screen) - paper)))
         rows.append({'anchor0': a0.tolist(), 'anchor1': a1.tolist(), 'screen_worst': worst,
-                     'fig7': verdict, 'workpiece_share': share, 'workpiece_gap_m': gap})
+                     'fig7': verdicts[0], 'fig7_fixed': verdicts[1],
+                     'workpiece_share': share, 'workpiece_gap_m': gap})
     near = [k for k, r in enumerate(rows) if r['screen_worst'] <= screen_tolerance]
     fitted = map_cases(_fitted_case, [(cands[k][2], 0.05, 0.1, plane_step) for k in near])
     for k, extra in zip(near, fitted):
@@ -386,8 +417,8 @@ def heldout_search(desc: RobotDescription, pitch: float = 0.1, min_home_gap: flo
     return {'stats': stats, 'rows': rows, 'summary': summarise_heldout(rows)}
 
 
-def _paper_trend(row):
-    return row['fig7']['shrinks'] and row['fig7']['body_decides']
+def _paper_trend(row, key='fig7'):
+    return row[key]['shrinks'] and row[key]['body_decides']
 
 
 def _workpiece_ok(share, gap):
@@ -406,10 +437,14 @@ def summarise_heldout(rows: list) -> dict:
     def any_size(r):
         return any(_workpiece_ok(s['share'], s['gap_m']) for s in r['workpiece_sizes'])
 
-    decided = {}
-    for r in fitted:
-        key = r['fig7']['decided_high']
-        decided[key] = decided.get(key, 0) + 1
+    def decided_by(key):
+        out = {}
+        for r in fitted:
+            name = r[key]['decided_high']
+            out[name] = out.get(name, 0) + 1
+        return out
+
+    fixed = [r for r in rows if _paper_trend(r, 'fig7_fixed')]
     return {
         'candidates': len(rows),
         'fig7_shrinks': len(shrink),
@@ -422,7 +457,16 @@ def summarise_heldout(rows: list) -> dict:
         'fitted_with_fig7_shrinking': sum(1 for r in fitted if r['fig7']['shrinks']),
         'fitted_with_workpiece_60_some_size': sum(1 for r in fitted if any_size(r)),
         'fitted_with_both': sum(1 for r in fitted if _paper_trend(r) and any_size(r)),
-        'fitted_fig7_decided_by': decided,
+        'fitted_fig7_decided_by': decided_by('fig7'),
+        'fig7_fixed_shrinks': sum(1 for r in rows if r['fig7_fixed']['shrinks']),
+        'fig7_fixed_shrinks_by_cable_body': len(fixed),
+        'fitted_with_fig7_fixed_shrinking': sum(1 for r in fitted
+                                                if r['fig7_fixed']['shrinks']),
+        'fitted_with_fig7_fixed_trend': sum(1 for r in fitted
+                                            if _paper_trend(r, 'fig7_fixed')),
+        'fitted_fig7_fixed_decided_by': decided_by('fig7_fixed'),
+        'best_table2_screen_with_fig7_fixed_trend': min((r['screen_worst'] for r in fixed),
+                                                        default=None),
         'best_table2_screen_with_fig7_trend': min((r['screen_worst'] for r in fig7),
                                                   default=None),
         'best_table2_screen_with_workpiece_60': min((r['screen_worst'] for r in work),

@@ -19,6 +19,7 @@ def trimmed(res):
 
     def keep(r):
         return ('table2_worst' in r or (r['fig7']['shrinks'] and r['fig7']['body_decides'])
+                or (r['fig7_fixed']['shrinks'] and r['fig7_fixed']['body_decides'])
                 or abs(r['workpiece_share'] - PAPER_WORKPIECE_SHARE) <= TOLERANCE_POINTS)
     rows = [r for r in res['rows'] if keep(r)]
     return {**res, 'rows': rows, 'rows_kept': len(rows), 'rows_total': len(res['rows'])}
