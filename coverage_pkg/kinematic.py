@@ -12,6 +12,7 @@ import time
 import numpy as np
 import shapely
 
+from coverage_pkg.algorithm1 import PaperConfig, PaperPlanner
 from coverage_pkg.cvs import CoverableSet, CoverageAccumulator
 from coverage_pkg.planner import CoveragePlanner, PlannerConfig
 from coverage_pkg.sonar import SonarRing, simulate_ring
@@ -21,15 +22,18 @@ def run_kinematic(world, config=None, ring=None, dt=0.05, sweep_period=0.1, max_
                   seed=0, dropout=None, corrupt=None, cvs_resolution=0.05, on_step=None):
     """Run coverage on ``world`` until the planner is done/stuck or ``max_time`` sim seconds.
 
-    ``dropout(t) -> bool`` suppresses sweeps (sonar silence); ``corrupt(t, ranges) -> ranges``
-    alters readings (NaN/inf faults). Returns a result dict with the path, its length, the
-    covered fraction of CVS and the planner.
+    ``config`` is a :class:`PaperConfig` (the paper planner, :mod:`coverage_pkg.algorithm1`)
+    or a :class:`PlannerConfig` (the grid planner). ``dropout(t) -> bool`` suppresses
+    sweeps (sonar silence); ``corrupt(t, ranges) -> ranges`` alters readings (NaN/inf
+    faults). Returns a result dict with the path, its length, the covered fraction of CVS
+    and the planner.
     """
     cfg = config or PlannerConfig()
     ring = ring or SonarRing()
     ring.validate(cfg.delta if cfg.detector == 'extended' else None)
-    planner = CoveragePlanner(cfg, ring.mount_angles(), ring.beam_width, ring.min_range,
-                              ring.max_range, ring.noise_std)
+    cls = PaperPlanner if isinstance(cfg, PaperConfig) else CoveragePlanner
+    planner = cls(cfg, ring.mount_angles(), ring.beam_width, ring.min_range, ring.max_range,
+                  ring.noise_std)
     rng = np.random.default_rng(seed)
     cvs = CoverableSet(world, cfg.radius, cfg.detector_range(), cvs_resolution)
     acc = CoverageAccumulator(cvs)

@@ -55,6 +55,7 @@ from scipy import ndimage
 
 from coverage_pkg import gvd as gvdmod
 from coverage_pkg import morse
+from coverage_pkg.algorithm1 import Command
 from coverage_pkg.hierarchical_graph import HierarchicalGraph
 from coverage_pkg.mapping import T_FREE, T_OCC, EvidenceGrid, drop_speckles
 from coverage_pkg.sonar import sweep_evidence
@@ -144,16 +145,6 @@ class PlannerConfig:
         if sonar_max_range is not None and not sonar_max_range > self.delta:
             raise UserError(f'sonar max range {sonar_max_range:g} m must exceed delta '
                             f'{self.delta:g} m')
-
-
-@dataclass
-class Command:
-    """Velocity command in the robot body frame plus the planner state."""
-
-    vx: float
-    vy: float
-    wz: float
-    state: str
 
 
 class CoveragePlanner:
@@ -978,7 +969,7 @@ class CoveragePlanner:
         The last condition keeps the robot out of a hall whose band is not done: there the
         narrow node's next piece is the rest of the band, nearer than the far end of the
         hall's laps, and the robot that lapped the hall first came back for the band
-        piecewise (an empty 18 x 10 room: 3.64 times the lower bound against 2.78; stop 26)."""
+        piecewise (an empty 18 x 10 room: 3.64 times the lower bound against 2.78 with it)."""
         far, near = self.cfg.leave_far, self.cfg.leave_near
         if node.kind != 'narrow' or far <= 0 or reach_dist(node) < far:
             return None
@@ -1152,10 +1143,9 @@ class CoveragePlanner:
         geodesic distances between chunks come from Dijkstra on a coarse copy of the cost
         grid; the tour is nearest-neighbour then 2-opt. Unlike the nearest cell, the tour
         finishes a short dead-end branch before the branch that leads on (it would otherwise
-        come back for it). The tour's end is free. (Until stop 26 it was made to end at a chunk
-        facing the frontier; on the sonar map nearly every chunk faces some frontier, a gap in
-        a mapped wall or a pocket between two cones, and the rule sent the robot across the
-        world to leave a room's last corner for the end: docs/coverage.md, stop 26.)"""
+        come back for it). The tour's end is free: on the sonar map nearly every chunk faces some
+        frontier (a gap in a mapped wall, a pocket between two cones), so a tour made to end
+        at a chunk facing the frontier would send the robot across the world."""
         res = self.grid.res
         f = max(1, int(round(COARSE_CELL / res)))
         chunks = chunk_cells(mine, max(1, int(round(self.cfg.tour_chunk / res))))

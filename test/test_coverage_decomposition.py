@@ -231,7 +231,7 @@ def test_pockets_a_finished_pass_left_unseen_are_approached_once():
     """The left-pocket pass is what covers the hall's wall strips when the hall's pieces are
     taken nearest first: with it >= 99 % of CVS, without it `done` below 99 % (98.8 % when this
     test was written). The default tour order happens to pass close enough to the walls of this
-    hall without it (99.7 % in stop 24), so the pass is shown load-bearing with
+    hall without it (99.7 %), so the pass is shown load-bearing with
     ``piece_order='nearest'``; the default run must still reach 99 %."""
     from unittest import mock
     r = run_kinematic(world_from_dict(L_HALL), PlannerConfig(delta=DELTA), max_time=600)
@@ -273,8 +273,8 @@ def test_a_hall_is_lapped_after_its_band_is_done(runs):
     """The empty 18 x 10 room: one narrow cell (the band along the walls) and one vast cell
     (the hall). The hall's laps reach farther than the rest of the band, so the narrow node
     does not hand over (``_vast_left_behind``): the band is finished, then the hall is lapped.
-    Stop 25's hand-over, without that condition, took the robot into the laps at 47.5 s with
-    the top band half traced; it came back for the band piece by piece (path 3.64 times the
+    A hand-over without that condition takes the robot into the laps at 47.5 s with
+    the top band half traced; it comes back for the band piece by piece (path 3.64 times the
     lower bound, against 2.78 with the condition)."""
     ev = runs['plain']['planner'].events
     assert not any('leaves it behind' in e[4] for e in ev)

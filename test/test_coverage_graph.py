@@ -176,7 +176,7 @@ def test_replayed_bag_gives_the_same_decisions():
     params = json.loads((sample / 'params.json').read_text())
     config = PlannerConfig(delta=params['delta'], radius=params['radius'])
     mine, recorded, planner = _replay(sample / 'bag', config, params['beam_width'])
-    assert len(recorded) > 150                 # the re-recorded run (stop 24) is 25.1 s
+    assert len(recorded) > 150                 # the recorded run is 25.1 s
     assert mine == recorded
     assert planner.state == 'done'
     status = [deserialize(m) for m in read_messages(sample / 'bag', ['/coverage/status'])]

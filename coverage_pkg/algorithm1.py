@@ -1,0 +1,924 @@
+"""Algorithm 1 of Acar, Choset and Lee, driven by sensed events alone (``planner:=paper``).
+
+Every structure of the hierarchical decomposition graph ``(N, E)`` is created by an event
+the sonar ring senses; no map is decomposed. The subroutines map one to one onto the paper:
+
+* :meth:`PaperPlanner.create_node` is ``CreateNode(x, D(x))``: a vast node where ``D > delta``,
+  a narrow node otherwise. It is called for the start and for every new *cusp point*
+  (Section V-B): a cusp sensed while covering a vast node creates a narrow node, one sensed
+  while tracing a narrow node creates a vast node, and the edge between them carries the cusp.
+* :meth:`PaperPlanner._morse_step` is ``MorseDecompCoverage(n, L, F)``: laps along the slices
+  of ``h = x`` spaced ``2 delta`` apart (the robot "as big as its detector", Section IV-A),
+  ended at ``D = delta`` ahead, and the moves between laps following the boundary at
+  ``D = delta``. A *critical point* sensed from a lap (the slice's connectivity changes ahead:
+  the ring's echoes along ``+-x`` show two open stretches, or none) closes the current Morse
+  cell and opens its successors in the node's Reeb graph; the node is covered when every
+  Morse cell has closed.
+* :meth:`PaperPlanner._gvd_step` is ``TraceGVD(n, L, F)``: from a cusp point the robot follows
+  the GVD edge by a control law on its two closest echoes; a *meet point* (three closest
+  obstacles equidistant) adds the GVD branches leaving it; the narrow node is covered when
+  every branch has ended at a cusp point, a dead end or a meet point already known.
+* :meth:`PaperPlanner.find_uncovered_node` is ``FindUncoveredNode(N)``; the path to ``x(n)``
+  runs along the robot's own traced path (:class:`TracedPaths`): a sample joins another when
+  the segment between them lies in the free disk the ring measured there.
+
+``without`` switches the sensing of one event kind off (``cusp``, ``critical``, ``meet``), so
+that the run shows what the paper predicts without it. Plain numpy; no ROS.
+"""
+import heapq
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from coverage_pkg import gvd as gvdmod
+from paramotion.errors import UserError
+
+EVENTS = ('cusp', 'critical', 'meet')
+TERMINAL = ('done', 'stuck', 'incomplete')
+
+
+@dataclass
+class PaperConfig:
+    """Parameters of the paper planner (SI units)."""
+
+    delta: float = 2.0              # detector range (m)
+    radius: float = 0.25            # robot radius r (m)
+    max_speed: float = 1.0          # m/s
+    spin_rate: float = 0.6          # rad/s, turns the ring over the gaps between its cones
+    sonar_timeout: float = 0.5      # s without a sweep before stopping
+    warmup: float = 1.0             # s spinning in place before the first move
+    without: tuple = ()             # event kinds whose sensing is switched off
+    event_tolerance: float = 0.15   # m, closest echoes this equal are equidistant
+    cone: float = math.radians(20.0)   # half-angle of the echoes taken as 'ahead'
+    slice_cone: float = math.radians(12.0)  # ... as along +-x when a lap reads the slice
+    overlap: float = 0.2            # m, laps are 2 delta - overlap apart
+    min_run: float = 0.5            # m, a stretch of a lap shorter than this is echo noise
+    same_event: float = 1.0         # m, an event this near a known one is the known one
+    stuck_time: float = 6.0         # s commanded but not moving -> the target is given up
+    max_stuck: int = 6              # stuck events in a row before the run stops
+    detector: str = 'extended'      # the paper planner is for the extended-range detector
+
+    def detector_range(self) -> float:
+        """Range of the detector used for coverage: delta."""
+        return self.delta
+
+    def validate(self, sonar_max_range=None) -> None:
+        """Raise UserError (one line) for inconsistent parameters."""
+        if not self.radius > 0:
+            raise UserError(f'radius {self.radius:g} m must be > 0')
+        if not self.delta > self.radius:
+            raise UserError(f'delta {self.delta:g} m must be greater than the robot radius '
+                            f'{self.radius:g} m')
+        bad = [w for w in self.without if w not in EVENTS]
+        if bad:
+            raise UserError(f'without "{bad[0]}" must be one of {", ".join(EVENTS)}')
+        if sonar_max_range is not None and not sonar_max_range > self.delta:
+            raise UserError(f'sonar max range {sonar_max_range:g} m must exceed delta '
+                            f'{self.delta:g} m')
+
+
+@dataclass
+class Command:
+    """Velocity command in the robot body frame plus the planner state."""
+
+    vx: float
+    vy: float
+    wz: float
+    state: str
+
+
+@dataclass
+class MorseCell:
+    """An edge of a vast node's Reeb graph: a cell between two critical points."""
+
+    id: int
+    start: tuple                    # where its first lap is driven from
+    sweep: int                      # +1: laps advance along +x, -1: along -x
+    prev_span: tuple = None         # (y_lo, y_hi) of the lap before its first one
+    opened_by: int = None           # index of the event that opened it
+    closed_by: int = None           # ... and of the event that closed it
+    parent: int = None              # the cell whose critical point opened it
+    laps: list = field(default_factory=list)   # (x, y_lo, y_hi) per lap driven
+    status: str = 'open'            # open, covering, covered, given_up
+
+
+@dataclass
+class Branch:
+    """A GVD edge of a narrow node, left from ``start`` along ``heading``."""
+
+    start: tuple
+    heading: tuple
+    opened_by: int = None
+    end: str = None                 # cusp, dead_end, meet, given_up (None: untraced)
+
+
+@dataclass
+class Node:
+    """A node of the hierarchical decomposition graph."""
+
+    id: int
+    kind: str                       # 'vast' or 'narrow'
+    anchor: tuple                   # x(n): where the robot starts covering it
+    created_by: int = None          # event index (None: CreateNode at the start)
+    closed_by: int = None
+    covered: bool = False
+    given_up: bool = False
+    circuits: list = field(default_factory=list)    # vast: boundaries to follow at D = delta
+    cells: list = field(default_factory=list)       # vast: Morse cells (Reeb graph edges)
+    critical: list = field(default_factory=list)    # vast: (x, y, kind, event index)
+    branches: list = field(default_factory=list)    # narrow: GVD branches
+    meets: list = field(default_factory=list)       # narrow: (x, y, event index)
+
+
+class TracedPaths:
+    """The robot's own path as a roadmap for transit (Algorithm 1: 'find a path ... in (N, E)').
+
+    Samples every ``step`` m carry the distance ``D`` the ring measured there; two samples are
+    joined when they are closer than ``min(D_i, D_j) - clearance`` (the segment then lies in a
+    disk the ring saw free). Dijkstra runs only when a transit is planned.
+    """
+
+    def __init__(self, clearance: float, step: float = 0.3, bucket: float = 2.0):
+        self.clear, self.step, self.bucket = clearance, step, bucket
+        self.xy, self.d, self.grid = [], [], {}
+
+    def add(self, x: float, y: float, d: float) -> None:
+        if self.xy and math.dist(self.xy[-1], (x, y)) < self.step:
+            return
+        self.xy.append((x, y))
+        self.d.append(d)
+        key = (int(x // self.bucket), int(y // self.bucket))
+        self.grid.setdefault(key, []).append(len(self.xy) - 1)
+
+    def _near(self, i, reach):
+        x, y = self.xy[i]
+        k = int(math.ceil(reach / self.bucket))
+        bx, by = int(x // self.bucket), int(y // self.bucket)
+        for gx in range(bx - k, bx + k + 1):
+            for gy in range(by - k, by + k + 1):
+                yield from self.grid.get((gx, gy), ())
+
+    def nearest(self, xy):
+        for reach in (1.0, 3.0, 10.0, 1e9):
+            best = None
+            for j in (self._near_point(xy, reach) if reach < 1e9 else range(len(self.xy))):
+                dd = math.dist(self.xy[j], xy)
+                if dd <= reach and (best is None or dd < best[0]):
+                    best = (dd, j)
+            if best:
+                return best[1]
+        return None
+
+    def _near_point(self, xy, reach):
+        k = int(math.ceil(reach / self.bucket))
+        bx, by = int(xy[0] // self.bucket), int(xy[1] // self.bucket)
+        for gx in range(bx - k, bx + k + 1):
+            for gy in range(by - k, by + k + 1):
+                yield from self.grid.get((gx, gy), ())
+
+    def distances(self, src: int) -> dict:
+        """Path length along the roadmap from sample ``src`` to every sample reached."""
+        return self._dijkstra(src)[0]
+
+    def route(self, src: int, dst: int) -> list:
+        """Waypoints from sample ``src`` to sample ``dst`` (empty if not connected)."""
+        dist, prev = self._dijkstra(src, dst)
+        if dst not in dist:
+            return []
+        out = [dst]
+        while out[-1] != src:
+            out.append(prev[out[-1]])
+        return [self.xy[i] for i in reversed(out)]
+
+    def _dijkstra(self, src, dst=None):
+        dist, prev, heap = {src: 0.0}, {}, [(0.0, src)]
+        while heap:
+            c, i = heapq.heappop(heap)
+            if c > dist.get(i, math.inf) or i == dst:
+                if i == dst:
+                    break
+                continue
+            reach = max(self.d[i] - self.clear, self.step * 1.5)
+            for j in self._near(i, reach):
+                step = math.dist(self.xy[i], self.xy[j])
+                if j == i or (step > min(self.d[i], self.d[j]) - self.clear
+                              and abs(i - j) != 1):
+                    continue
+                nc = c + step
+                if nc < dist.get(j, math.inf):
+                    dist[j], prev[j] = nc, i
+                    heapq.heappush(heap, (nc, j))
+        return dist, prev
+
+
+class PaperPlanner:
+    """Algorithm 1 online. Feed :meth:`on_odometry` and :meth:`on_sweep`; call :meth:`update`.
+
+    ``event_filter(kind, xy) -> bool`` (tests) drops a sensed event before it is used;
+    ``injected`` holds ``(t, kind, (x, y))`` events handed to the planner as if sensed.
+    """
+
+    def __init__(self, config: PaperConfig, mount_angles, beam_width: float, min_range: float,
+                 max_range: float, noise_std: float = 0.01):
+        config.validate(max_range)
+        self.cfg = config
+        self.mount = np.asarray(mount_angles, dtype=float)
+        self.min_range, self.max_range = float(min_range), float(max_range)
+        self.det = config.delta
+        self.spacing = 2.0 * config.delta - config.overlap
+        # A slice is open ahead where the echo along the sweep reaches beyond what the next
+        # lap and the boundary circuit see (3 delta), as far as the ring can tell.
+        self.far = min(3.0 * config.delta, 0.95 * self.max_range)
+        self.nodes, self.edges = [], []            # N, E; edge: (vast id, narrow id, cusp)
+        self.events = []                           # (t, kind, x, y, detail)
+        self.segments = []                         # [primitive, length m]
+        self.decisions = []
+        self.paths = TracedPaths(config.radius + 0.1)
+        self.event_filter = None
+        self.injected = []
+        self.pose = self.t_sweep = self.t_first_sweep = None
+        self.t_plan = 0.0
+        self.state = 'no_odometry'
+        self.current = None                        # Algorithm 1's n
+        self.mode, self.task = None, {}            # primitive being driven and its data
+        self.route = []
+        self.sweeps = 0
+        self.D, self.mins, self.angles, self.ranges = math.inf, [], None, None
+        self._prev_d, self._near_bearing, self._meet_cand = None, None, None
+        self._hist, self.stuck_count, self.given_up = [], 0, []
+        self.update_times = []
+        self.last = {}                             # no decomposed map (the node's markers)
+
+    # ------------------------------------------------------------------ inputs
+
+    def on_odometry(self, t: float, x: float, y: float, yaw: float) -> None:
+        """Robot pose in the odom frame at sim time t."""
+        if all(math.isfinite(v) for v in (t, x, y, yaw)):
+            if self.pose is not None and self.mode:
+                step = math.dist(self.pose[:2], (x, y))
+                if self.segments and self.segments[-1][0] == self.mode:
+                    self.segments[-1][1] += step
+                elif step > 0:
+                    self.segments.append([self.mode, step])
+            self.pose = (float(x), float(y), float(yaw))
+
+    def on_sweep(self, t: float, ranges) -> None:
+        """One sweep of the ring (REP 117 values, in mount order): D, closest echoes, events."""
+        if self.pose is None:
+            return
+        r = np.asarray(ranges, dtype=float)
+        with np.errstate(invalid='ignore'):
+            ok = np.isfinite(r) & (r >= self.min_range)
+        r = np.where(np.isposinf(r), self.max_range, np.where(ok, r, np.nan))
+        if not np.isfinite(r).any():
+            return
+        self.t_sweep = t
+        self.t_first_sweep = t if self.t_first_sweep is None else self.t_first_sweep
+        self.sweeps += 1
+        self.ranges, self.angles = r, self.mount + self.pose[2]
+        rr = np.where(np.isfinite(r), r, np.inf)
+        self.mins = gvdmod.ring_minima(rr, self.angles)
+        prev, self.D = self.D, float(np.nanmin(r))
+        self.paths.add(self.pose[0], self.pose[1], self.D)
+        if t - self.t_first_sweep >= self.cfg.warmup and self.mode in ('lap', 'boundary',
+                                                                      'gvd'):
+            self._sense_cusp(t, prev)
+            if self.mode == 'gvd':
+                self._sense_meet(t)
+        for ev in [e for e in self.injected if e[0] <= t]:
+            self.injected.remove(ev)
+            self._on_event(t, ev[1], ev[2], 'injected')
+        if self.mode == 'lap':
+            self._profile_sample()
+
+    def echo(self, direction: float, cone: float = None) -> float:
+        """Nearest echo within ``cone`` of the world bearing ``direction`` (max range if none)."""
+        diff = np.abs(np.remainder(self.angles - direction + math.pi, 2 * math.pi) - math.pi)
+        sel = (diff <= (cone or self.cfg.cone)) & np.isfinite(self.ranges)
+        return float(self.ranges[sel].min()) if sel.any() else self.max_range
+
+    # ------------------------------------------------------------------ event sensing
+
+    def _sense_cusp(self, t, prev):
+        """Cusp point (Section V-B): D crosses delta on the GVD (Fig. 11), or at D = delta the
+        closest obstacle jumps to another one (Fig. 10); placed where both are at delta."""
+        xy = None
+        if math.isfinite(prev) and (prev <= self.det) != (self.D <= self.det):
+            xy = gvdmod.cusp_from_ring(self.pose[:2], self.ranges, self.angles, self.det)
+        bearing = self.mins[0][1] if self.mins else None
+        last, self._near_bearing = self._near_bearing, bearing
+        if xy is None and last is not None and bearing is not None and \
+                abs(self.D - self.det) < 0.3 and \
+                abs(math.remainder(bearing - last, 2 * math.pi)) > math.radians(45):
+            xy = gvdmod.cusp_from_ring(self.pose[:2], self.ranges, self.angles, self.det)
+        if xy is not None:
+            self._on_event(t, 'cusp', xy, 'D = delta where two closest obstacles meet')
+
+    def _sense_meet(self, t):
+        """Meet point (Section III): three closest obstacles equidistant, two sweeps agreeing."""
+        m = gvdmod.meet_from_ring(self.pose[:2], self.ranges, self.angles)
+        if m is None or m[2] > self.det:
+            self._meet_cand = None
+            return
+        prev, self._meet_cand = self._meet_cand, m
+        if prev is not None and math.dist(prev[:2], m[:2]) <= 0.15:
+            self._on_event(t, 'meet', ((m[0] + prev[0]) / 2, (m[1] + prev[1]) / 2),
+                           f'three closest obstacles at {m[2]:.2f} m')
+
+    def _on_event(self, t, kind, xy, detail):
+        """A sensed (or injected) event: dropped if switched off or filtered, merged with a
+        known one nearby; else recorded and handed to the subroutine it belongs to."""
+        if kind in self.cfg.without or (self.event_filter and not self.event_filter(kind, xy)):
+            return None
+        if kind != 'critical' and any(e[1] == kind and math.dist(e[2:4], xy) < self.cfg.same_event
+                                      for e in self.events):
+            return None
+        idx = self._record(t, kind, xy, detail)
+        if kind == 'cusp':
+            self._on_cusp(idx, xy)
+        elif kind == 'meet':
+            self._on_meet(idx, xy)
+        return idx
+
+    def _record(self, t, kind, xy, detail):
+        self.events.append((round(float(t), 3), kind, round(float(xy[0]), 3),
+                            round(float(xy[1]), 3), detail))
+        return len(self.events) - 1
+
+    # ------------------------------------------------------------------ Algorithm 1
+
+    def create_node(self, kind: str, x: tuple, created_by=None) -> Node:
+        """CreateNode(x, D(x)): a new uncovered node of ``kind`` anchored at ``x``."""
+        n = Node(len(self.nodes), kind, (float(x[0]), float(x[1])), created_by)
+        self.nodes.append(n)
+        self._record(self.t_sweep or 0.0, 'node_created', x,
+                     f'{kind} node {n.id}' + ('' if created_by is None else
+                                              f' by event {created_by}'))
+        return n
+
+    def _on_cusp(self, idx, xy):
+        """A new cusp point: a node of the other kind beyond it and an edge to it (L, F)."""
+        n = self.nodes[self.current] if self.current is not None else None
+        if n is None:
+            return
+        new = self.create_node('narrow' if n.kind == 'vast' else 'vast', xy, idx)
+        self.edges.append((n.id, new.id, xy) if n.kind == 'vast' else (new.id, n.id, xy))
+        if new.kind == 'narrow':
+            new.branches.append(Branch(xy, None, idx))
+        if n.kind == 'narrow' and self.mode == 'gvd':
+            self._end_branch('cusp')
+
+    def find_uncovered_node(self):
+        """FindUncoveredNode(N): the uncovered node nearest along the traced paths."""
+        cands = [n for n in self.nodes if not n.covered]
+        if not cands:
+            return None
+        src = self.paths.nearest(self.pose[:2])
+        dist = self.paths.distances(src)
+
+        def cost(n):
+            j = self.paths.nearest(n.anchor)
+            return dist.get(j, 1e6) + math.dist(self.paths.xy[j], n.anchor), n.id
+        return min(cands, key=cost)
+
+    def update(self, t: float) -> Command:
+        """Advance the planner at sim time t; returns the velocity command to send."""
+        if self.pose is None:
+            return Command(0.0, 0.0, 0.0, 'no_odometry')
+        if self.state in TERMINAL:
+            return Command(0.0, 0.0, 0.0, self.state)
+        if self.t_sweep is None or t - self.t_sweep > self.cfg.sonar_timeout:
+            if self.state != 'waiting_for_sonar':
+                self._record(t, 'sonar_timeout', self.pose, 'no valid sonar sweep, stopped')
+            self.state = 'waiting_for_sonar'
+            self._hist.clear()
+            return Command(0.0, 0.0, 0.0, self.state)
+        if self.state == 'waiting_for_sonar':
+            self._record(t, 'sonar_resumed', self.pose, 'sonar sweeps back, resuming')
+        if t - self.t_first_sweep < self.cfg.warmup:
+            self.state = 'warmup'
+            return Command(0.0, 0.0, self.cfg.spin_rate, self.state)
+        if self.current is None and not self.nodes:
+            self.current = self.create_node('vast' if self.D > self.det else 'narrow',
+                                            self.pose[:2]).id
+            self._begin_node(self.nodes[self.current])
+        self.t_plan = t
+        for _ in range(6):                 # a finished primitive hands over at once
+            v = self._step(t)
+            if v is not None or self.state in TERMINAL:
+                break
+        if self.state in TERMINAL or v is None:
+            return Command(0.0, 0.0, 0.0, self.state)
+        self._check_stuck(t, v)
+        return self._body(*self._guard(v))
+
+    def _step(self, t):
+        """One control step of the primitive being driven; None when it has just ended."""
+        n = self.nodes[self.current] if self.current is not None else None
+        if self.mode == 'transit':
+            return self._transit_step()
+        if n is None or n.covered:
+            return self._next_node(t)
+        self.state = f'covering_{n.kind}'
+        return self._morse_step(n) if n.kind == 'vast' else self._gvd_step(n)
+
+    def _next_node(self, t):
+        """Mark n covered, n <- FindUncoveredNode(N), path to x(n) in (N, E)."""
+        if self.current is not None:
+            n = self.nodes[self.current]
+            if not n.covered:
+                n.covered = True
+            n.closed_by = len(self.events)
+            self._record(t, 'node_covered', self.pose, f'{n.kind} node {n.id}')
+        nxt = self.find_uncovered_node()
+        if nxt is None:
+            self.state = 'incomplete' if self.given_up else 'done'
+            self.mode = None
+            self._record(t, self.state, self.pose, 'no uncovered node left (FindUncoveredNode)'
+                         + (f'; given up: {self.given_up}' if self.given_up else ''))
+            return None
+        self.current = nxt.id
+        self.decisions.append((round(t, 3), nxt.id, nxt.kind, nxt.anchor[0], nxt.anchor[1]))
+        self._begin_node(nxt)
+        return None
+
+    def _begin_node(self, n):
+        """Start covering ``n``: a vast node's first Morse cell opens at x(n), a narrow
+        node's first GVD branch leaves x(n)."""
+        self.task, self.mode = {}, None
+        if n.kind == 'vast' and not n.circuits:
+            n.circuits.append({'start': n.anchor, 'done': False, 'opened_by': n.created_by})
+        if n.kind == 'narrow' and not n.branches:
+            n.branches.append(Branch(n.anchor, None, n.created_by))
+
+    # ------------------------------------------------------------------ transit
+
+    def _go_to(self, xy, then):
+        """Transit along the traced paths to ``xy``; ``then`` is the mode after arrival."""
+        if math.dist(self.pose[:2], xy) < 0.3:
+            self.mode = then
+            return
+        src, dst = self.paths.nearest(self.pose[:2]), self.paths.nearest(xy)
+        route = self.paths.route(src, dst) if src is not None and dst is not None else []
+        self.route = route + [tuple(xy)]
+        self.mode, self.task['after'] = 'transit', then
+
+    def _transit_step(self):
+        while self.route and math.dist(self.pose[:2], self.route[0]) < 0.2:
+            self.route.pop(0)
+        if not self.route:
+            self.mode = self.task.pop('after', None)
+            return None
+        return self._towards(self.route[0], self.cfg.max_speed)
+
+    # ------------------------------------------------------------------ MorseDecompCoverage
+
+    def _morse_step(self, n):
+        """MorseDecompCoverage: laps 2 delta apart in the current Morse cell; the moves
+        between them follow the boundary at D = delta; critical points close cells."""
+        circ = self.task.get('circuit') or next((c for c in n.circuits if not c['done']), None)
+        if circ is not None:
+            return self._circuit_step(n, circ)
+        cell = self._open_cell(n)
+        if cell is None:
+            n.covered = True
+            return None
+        if self.mode == 'transit':
+            return None
+        tk, s = self.task, cell.sweep
+        if tk.get('phase') is None:                # at the cell's start
+            if self._known_region(n, cell):
+                return None
+            if cell.prev_span is None:             # a node's first cell: find its left side
+                tk.update(phase='find_left')
+            else:                                  # a successor: its first lap is ahead
+                tk.update(phase='advance', x0=self.pose[0], first=True)
+            self.mode = 'boundary'
+        if tk['phase'] == 'find_left':             # to the cell's opening side
+            if self.echo(math.pi if s > 0 else 0.0) > self.det:
+                return self._boundary_velocity(-s)
+            tk.update(phase='advance', x0=self.pose[0], first=True)   # the circuit lapped it
+            return None
+        if tk['phase'] in ('lap_first', 'lap'):
+            if self.echo(math.pi / 2 * tk['dir']) > self.det:
+                return self._lap_velocity(tk['x'], tk['dir'])
+            if tk['phase'] == 'lap_first':         # one end of the slice reached: lap it
+                tk.update(phase='lap', dir=-tk['dir'])
+                self._profile_reset()
+                return None
+            return self._end_lap(n, cell)
+        moved = s * (self.pose[0] - tk['x0'])      # advance: to the next slice, 2 delta on
+        if moved < self.spacing and self.echo(0.0 if s > 0 else math.pi) > self.det:
+            return self._boundary_velocity(s)
+        if moved < 0.3:
+            return self._close_cell(n, cell, None, 'no room for another lap')
+        if self._known_region(n, cell):
+            return None
+        return self._start_lap(first=tk.get('first', False))
+
+    def _start_lap(self, first):
+        """Begin a lap at this column: a first lap goes to one end of the slice, then laps it
+        whole; a later lap runs back from the end the last one reached."""
+        tk = self.task
+        if first:
+            span = self._cell().prev_span
+            up = span is None or self.pose[1] >= 0.5 * (span[0] + span[1])
+            tk.update(phase='lap_first', dir=1 if up else -1)
+        else:
+            tk.update(phase='lap', dir=-tk.get('dir', 1))
+        tk.update(x=self.pose[0], first=False)
+        self.mode = 'lap'
+        self._profile_reset()
+        return None
+
+    def _cell(self):
+        n = self.nodes[self.current]
+        return n.cells[self.task['cell']]
+
+    def _open_cell(self, n):
+        """The Morse cell being covered, else the nearest open one (transit to its start)."""
+        cell = next((c for c in n.cells if c.status == 'covering'), None)
+        if cell is not None:
+            return cell
+        opened = [c for c in n.cells if c.status == 'open']
+        if not opened:
+            return None
+        src = self.paths.nearest(self.pose[:2])
+        dist = self.paths.distances(src)
+        cell = min(opened, key=lambda c: (dist.get(self.paths.nearest(c.start), 1e6), c.id))
+        cell.status = 'covering'
+        self.task = {'cell': cell.id, 'phase': None, 's': cell.sweep}
+        self._go_to(cell.start, then=None)
+        return cell
+
+    def _known_region(self, n, cell):
+        """The lap about to start lies on a lap of another Morse cell: this cell has run into
+        one already covered (a merge of the Reeb graph, recognised at a known slice)."""
+        x, y = self.pose[:2]
+        for m in self.nodes:
+            for c in m.cells:
+                if c is cell or (m is n and c.id == cell.parent):
+                    continue
+                for lx, lo, hi in c.laps:
+                    if abs(lx - x) < 0.75 * self.det and lo - 0.5 <= y <= hi + 0.5:
+                        self._close_cell(n, cell, None, f'reached Morse cell {m.id}.{c.id}')
+                        return True
+        return False
+
+    def _end_lap(self, n, cell):
+        """A lap has ended at D = delta: record it, read the slice ahead and behind from the
+        lap's echoes (critical points), then advance or close the cell."""
+        tk, s = self.task, cell.sweep
+        prof = np.array(tk['profile']) if tk['profile'] else np.zeros((0, 3))
+        y0 = tk['y0']
+        lo, hi = sorted((y0, self.pose[1]))
+        cell.laps.append((tk['x'], lo, hi))
+        prev_span = tk.get('prev_span') or cell.prev_span or (lo, hi)
+        tk['prev_span'] = (lo, hi)
+        if 'critical' not in self.cfg.without and len(prof):
+            runs = self._runs(prof[:, 0], prof[:, 1] > self.far)
+            if len(runs) >= 2:
+                return self._split(n, cell, prof, runs)
+            for a, b in self._runs(prof[:, 0], prof[:, 2] > self.far):
+                if b < prev_span[0] - 1.0 or a > prev_span[1] + 1.0:
+                    self._birth_behind(n, cell, (a, b))
+            if not runs:
+                i = int(np.nanargmin(prof[:, 1]))
+                return self._close_cell(n, cell, (tk['x'] + s * prof[i, 1], prof[i, 0]),
+                                        'death: the slice ends ahead')
+            if len(runs) == 1 and not runs[0][0] - 0.3 <= self.pose[1] <= runs[0][1] + 0.3:
+                y = runs[0][1] if self.pose[1] > runs[0][1] else runs[0][0]
+                tk.update(phase='advance', x0=tk['x'])
+                self._go_to((tk['x'], y), then='boundary')
+                return None
+        tk.update(phase='advance', x0=self.pose[0])
+        self.mode = 'boundary'
+        return None
+
+    def _runs(self, ys, mask):
+        """Stretches (y_lo, y_hi) of a lap where ``mask`` holds, at least ``min_run`` long."""
+        order = np.argsort(ys)
+        ys, mask = ys[order], mask[order]
+        runs, start, last = [], None, None
+        for y, m in zip(np.r_[ys, np.inf], np.r_[mask, False]):
+            if m and start is None:
+                start = y
+            elif not m and start is not None:
+                if last - start >= self.cfg.min_run:
+                    runs.append((float(start), float(last)))
+                start = None
+            last = y
+        return runs
+
+    def _split(self, n, cell, prof, runs):
+        """Critical point ahead between two open stretches: the slice splits. The current
+        Morse cell closes there and one successor per stretch opens (Reeb graph)."""
+        tk, s = self.task, cell.sweep
+        gap = (prof[:, 0] > runs[0][1]) & (prof[:, 0] < runs[1][0])
+        i = int(np.nanargmin(np.where(gap, prof[:, 1], np.inf))) if gap.any() else 0
+        xy = (tk['x'] + s * prof[i, 1], prof[i, 0])
+        idx = self._critical(n, xy, 'split')
+        if idx is None:
+            return self._advance_anyway(cell)
+        self._close_cell(n, cell, None, 'split', idx=idx)
+        n.circuits.append({'start': (xy[0] - s * self.det, xy[1]), 'done': False,
+                           'opened_by': idx})
+        here = self.pose[1]
+        runs = sorted(runs, key=lambda r: min(abs(here - r[0]), abs(here - r[1])))
+        for a, b in runs:
+            y = min((a, b), key=lambda v: abs(here - v)) if (a, b) == runs[0] else (a + b) / 2
+            n.cells.append(MorseCell(len(n.cells), (tk['x'], y), s, prev_span=(a, b),
+                                     opened_by=idx, parent=cell.id))
+        return None
+
+    def _advance_anyway(self, cell):
+        self.task.update(phase='advance', x0=self.pose[0])
+        self.mode = 'boundary'
+        return None
+
+    def _birth_behind(self, n, cell, run):
+        """Open slice behind the lap, beyond the last lap's span: a cell opening towards -x."""
+        y = (run[0] + run[1]) / 2
+        start = (self.task['x'], y)
+        for m in self.nodes:
+            for c in m.cells:
+                if math.dist(c.start, start) < self.det or any(
+                        abs(lx - start[0]) < 0.9 * self.det and lo - 0.5 <= y <= hi + 0.5
+                        for lx, lo, hi in c.laps if c is not cell):
+                    return
+        idx = self._critical(n, (start[0] - cell.sweep * self.det, y), 'birth behind')
+        if idx is not None:
+            n.cells.append(MorseCell(len(n.cells), start, -cell.sweep, prev_span=run,
+                                     opened_by=idx, parent=cell.id))
+
+    def _critical(self, n, xy, kind):
+        idx = self._on_event(self.t_sweep, 'critical', xy, f'{kind}: the slice changes '
+                             'connectivity (critical point of h = x)')
+        if idx is not None:
+            n.critical.append((float(xy[0]), float(xy[1]), kind, idx))
+        return idx
+
+    def _close_cell(self, n, cell, xy, why, idx=None):
+        if idx is None and xy is not None:
+            idx = self._critical(n, xy, why)
+        cell.status, cell.closed_by = 'covered', idx
+        self._record(self.t_sweep, 'cell_closed', self.pose,
+                     f'Morse cell {n.id}.{cell.id}: {why}')
+        self.mode, self.task = None, {}
+        return None
+
+    def _profile_reset(self):
+        self.task['profile'] = []
+        self.task['y0'] = self.pose[1]
+
+    def _profile_sample(self):
+        """Echoes along +-x (the sweep direction and behind) at this point of the lap."""
+        if 'profile' in self.task:
+            ahead = 0.0 if self.task.get('s', 1) > 0 else math.pi
+            c = self.cfg.slice_cone
+            self.task['profile'].append((self.pose[1], self.echo(ahead, c),
+                                         self.echo(ahead + math.pi, c)))
+
+    # ------------------------------------------------------------------ TraceGVD
+
+    def _gvd_step(self, n):
+        """TraceGVD: follow the GVD edge of the two closest echoes; branches end at a cusp
+        point, a dead end or a known meet point; meet points add branches."""
+        br = self.task.get('branch')
+        if br is None:
+            open_ = [b for b in n.branches if b.end is None]
+            if not open_:
+                n.covered = True
+                return None
+            br = min(open_, key=lambda b: math.dist(b.start, self.pose[:2]))
+            self.task = {'branch': br}
+            self._go_to(br.start, then='gvd')
+            self.task['branch'] = br
+            return None
+        self.mode = 'gvd'
+        head = self.task.get('heading') or br.heading
+        leave = self.task.setdefault('leave', self.pose[:2])
+        if head is not None and math.dist(leave, self.pose[:2]) < 0.6:
+            return np.asarray(head) * self.cfg.max_speed   # off the meet point, onto its edge
+        if len(self.mins) < 2:
+            return self._end_branch('dead_end')
+        (d1, a1), (d2, a2) = self.mins[:2]
+        n1 = np.array([math.cos(a1), math.sin(a1)])
+        n2 = np.array([math.cos(a2), math.sin(a2)])
+        diff = n1 - n2
+        if np.linalg.norm(diff) < 1e-6:
+            return self._end_branch('dead_end')
+        tang = np.array([-diff[1], diff[0]]) / np.linalg.norm(diff)
+        if head is None:                  # from a cusp: into the narrow region (D falls)
+            head = tang if tang @ (n1 + n2) >= 0 else -tang
+            if br.opened_by is None:      # the start: the GVD edge leaves it both ways
+                n.branches.append(Branch(self.pose[:2], tuple(-np.asarray(head)), None))
+        if tang @ np.asarray(head) < 0:
+            tang = -tang
+        self.task['heading'] = tuple(tang)
+        origin = self.task.setdefault('from', self.pose[:2])
+        self.task['far'] = max(self.task.get('far', 0.0), math.dist(origin, self.pose[:2]))
+        if self.echo(math.atan2(tang[1], tang[0])) <= self.cfg.radius + 0.35:
+            return self._end_branch('dead_end')
+        if 'cusp' not in self.cfg.without and self.D > self.det + 0.1 and \
+                self.task['far'] > 1.0:
+            return self._end_branch('cusp')       # Fig. 11: D rose above delta
+        if self.task['far'] > 3.0 and math.dist(origin, self.pose[:2]) < 0.5:
+            return self._end_branch('loop')
+        for m in n.meets:
+            if math.dist(m[:2], self.pose[:2]) < 0.5 and \
+                    math.dist(m[:2], br.start) > 0.7 and m[2] != self.task.get('meet'):
+                return self._end_branch('meet')
+        corr = diff / np.linalg.norm(diff) * (d1 - d2) * 2.0
+        return tang * self.cfg.max_speed + corr
+
+    def _on_meet(self, idx, xy):
+        """A meet point: the GVD edges leaving it (bisectors between the closest obstacles'
+        bearings) become branches of the narrow node; the robot goes on along one."""
+        n = self.nodes[self.current] if self.current is not None else None
+        if n is None or n.kind != 'narrow' or self.task.get('branch') is None:
+            return
+        n.meets.append((float(xy[0]), float(xy[1]), idx))
+        head = np.asarray(self.task.get('heading') or (1.0, 0.0))
+        back = math.atan2(-head[1], -head[0])
+        out = []
+        r = np.where(np.isfinite(self.ranges), self.ranges, 0.0)
+        k = len(r)
+        order = np.argsort(self.angles % (2 * math.pi))
+        r, ang = r[order], (self.angles % (2 * math.pi))[order]
+        for i in range(k):                # free bearings between the closest obstacles
+            if r[i] < r[i - 1] or r[i] < r[(i + 1) % k] or r[i] <= self.det:
+                continue                  # not a gap, or it ends in view of the detector
+            if abs(math.remainder(ang[i] - back, 2 * math.pi)) < math.radians(60):
+                continue                  # the edge the robot came along
+            if all(abs(math.remainder(ang[i] - o, 2 * math.pi)) > math.radians(45)
+                   for o in out):
+                out.append(float(ang[i]))
+        if not out:
+            return
+        out.sort(key=lambda m: abs(math.remainder(m - math.atan2(head[1], head[0]),
+                                                  2 * math.pi)))
+        for m in out[1:]:
+            n.branches.append(Branch(tuple(xy), (math.cos(m), math.sin(m)), idx))
+        self.task['heading'] = (math.cos(out[0]), math.sin(out[0]))
+        self.task['meet'] = idx
+        self.task['leave'] = self.pose[:2]
+
+    def _end_branch(self, how):
+        br = self.task.get('branch')
+        if br is not None:
+            br.end = how
+            self._record(self.t_sweep, 'branch_end', self.pose, f'GVD branch ends: {how}')
+        self.task, self.mode = {}, None
+        return None
+
+    # ------------------------------------------------------------------ control laws
+
+    def _lap_velocity(self, x_col, direction):
+        """A straight lap along the slice x = x_col (the holonomic base keeps the column)."""
+        return np.array([1.5 * (x_col - self.pose[0]), direction * self.cfg.max_speed])
+
+    def _boundary_velocity(self, s):
+        """Along +-x between two laps, following the boundary at D = delta: never nearer,
+        and pulled back to it when it is within reach."""
+        v = np.array([s * self.cfg.max_speed, 0.0])
+        if self.mins:
+            d, a = self.mins[0]
+            nrm = np.array([math.cos(a), math.sin(a)])
+            if d < self.det + 0.3:
+                v = v - max(v @ nrm, 0.0) * nrm + np.clip(d - self.det, -1.0, 0.3) * nrm
+        return v
+
+    def _follow_velocity(self):
+        """Boundary following at D = delta, obstacle on the right: along the tangent of the
+        closest obstacle, pulled back to D = delta along its normal."""
+        d, a = self.mins[0]
+        nrm = np.array([math.cos(a), math.sin(a)])
+        tang = np.array([-nrm[1], nrm[0]])
+        return tang * self.cfg.max_speed + np.clip(2.0 * (d - self.det), -1.0, 1.0) * nrm
+
+    def _circuit_step(self, n, circ):
+        """Follow the boundary of the vast cell at D = delta once around (Section II's
+        boundary following with the robot as big as its detector); cusp points are sensed
+        on it (Fig. 10). Ends back where it began."""
+        tk = self.task
+        if tk.get('circuit') is not circ:
+            self.task = tk = {'circuit': circ}
+            self._go_to(circ['start'], then='boundary')
+            return None
+        if self.mode == 'transit':
+            return None
+        self.mode = 'boundary'
+        if not self.mins:
+            return np.zeros(2)
+        if 'origin' not in tk:
+            if self.D > self.det + 0.1:           # approach the closest obstacle first
+                d, a = self.mins[0]
+                return np.array([math.cos(a), math.sin(a)]) * self.cfg.max_speed
+            tk.update(origin=self.pose[:2], length=0.0, last=self.pose[:2])
+            self._record(self.t_sweep, 'circuit', self.pose, f'boundary of vast node {n.id}')
+        tk['length'] += math.dist(tk['last'], self.pose[:2])
+        tk['last'] = self.pose[:2]
+        if (tk['length'] > 3.0 and math.dist(tk['origin'], self.pose[:2]) < 0.4) or \
+                tk['length'] > 500.0:
+            circ['done'] = True
+            if not n.cells:
+                n.cells.append(MorseCell(0, self.pose[:2], +1, opened_by=circ['opened_by']))
+            self.task, self.mode = {}, None
+            return None
+        return self._follow_velocity()
+
+    def _towards(self, xy, speed):
+        d = np.array(xy) - np.array(self.pose[:2])
+        norm = float(np.hypot(*d))
+        return d / norm * min(speed, 2.0 * norm + 0.2) if norm > 1e-9 else np.zeros(2)
+
+    def _guard(self, v):
+        """Never drive into the closest obstacle within r + 0.15 m; push away from it."""
+        v = np.asarray(v, dtype=float)
+        sp = float(np.hypot(*v))
+        if sp > self.cfg.max_speed:
+            v = v / sp * self.cfg.max_speed
+        for d, a in self.mins[:3]:
+            if d < self.cfg.radius + 0.2:
+                nrm = np.array([math.cos(a), math.sin(a)])
+                if v @ nrm > 0:
+                    v = v - (v @ nrm) * nrm
+                v = v - nrm * (self.cfg.radius + 0.2 - d) * 2.0
+        return v
+
+    def _body(self, vx, vy):
+        c, s = math.cos(self.pose[2]), math.sin(self.pose[2])
+        return Command(c * vx + s * vy, -s * vx + c * vy, self.cfg.spin_rate, self.state)
+
+    def _check_stuck(self, t, v):
+        """Commanded but not moving for ``stuck_time``: give the target up (reported)."""
+        self._hist.append((t, self.pose[0], self.pose[1]))
+        while self._hist and t - self._hist[0][0] > self.cfg.stuck_time:
+            self._hist.pop(0)
+        if len(self._hist) < 2 or t - self._hist[0][0] < self.cfg.stuck_time - 0.2:
+            return
+        if max(math.dist(h[1:], self.pose[:2]) for h in self._hist) > 0.15:
+            self.stuck_count = 0
+            return
+        self._hist.clear()
+        self.stuck_count += 1
+        self._record(t, 'stuck', self.pose, f'no motion for {self.cfg.stuck_time:g} s in '
+                     f'{self.mode}')
+        if self.stuck_count >= self.cfg.max_stuck:
+            self.state = 'stuck'
+            return
+        n = self.nodes[self.current]
+        if self.mode == 'gvd' or (self.mode == 'transit' and n.kind == 'narrow'):
+            self._end_branch('given_up')
+        elif n.kind == 'vast':
+            cell = next((c for c in n.cells if c.status == 'covering'), None)
+            if cell is not None:
+                self._close_cell(n, cell, None, 'given up: the robot cannot move')
+                cell.status = 'given_up'
+        self.route, self.mode = [], None
+        if self.stuck_count >= 3:
+            n.covered, n.given_up = True, True
+            self.given_up.append(n.id)
+
+    # ------------------------------------------------------------------ reporting
+
+    def status(self) -> dict:
+        """A compact, JSON-friendly status (published by the node)."""
+        return {'state': self.state, 'current_node': self.current, 'sweeps': self.sweeps,
+                'nodes': len(self.nodes),
+                'uncovered': [n.id for n in self.nodes if not n.covered],
+                'given_up': sorted(set(self.given_up)), 'mode': self.mode,
+                'last_event': list(self.events[-1]) if self.events else None}
+
+    def primitive_lengths(self) -> dict:
+        """Path length per primitive (lap, boundary, gvd, transit)."""
+        out = {}
+        for kind, length in self.segments:
+            out[kind] = out.get(kind, 0.0) + length
+        return out
+
+    def to_dict(self) -> dict:
+        """The hierarchical decomposition graph: nodes with their Reeb graphs / GVD branches
+        and the events that created and closed them; edges with their cusp points."""
+        nodes = []
+        for n in self.nodes:
+            nodes.append({
+                'id': n.id, 'type': n.kind, 'kind': n.kind, 'covered': n.covered,
+                'given_up': n.given_up, 'alive': True, 'anchor': list(n.anchor),
+                'centroid': list(n.anchor), 'label_point': list(n.anchor),
+                'created_by_event': n.created_by, 'closed_by_event': n.closed_by,
+                'critical_points': [list(c[:2]) for c in n.critical],
+                'meet_points': [list(m[:2]) for m in n.meets],
+                'morse_cells': [{'id': c.id, 'sweep': c.sweep, 'status': c.status,
+                                 'opened_by_event': c.opened_by,
+                                 'closed_by_event': c.closed_by,
+                                 'laps': [list(map(float, lap)) for lap in c.laps]}
+                                for c in n.cells],
+                'gvd_branches': [{'start': list(b.start), 'end': b.end,
+                                  'opened_by_event': b.opened_by} for b in n.branches]})
+        edges = [{'vast': v, 'narrow': w, 'cusp_points': [list(c)],
+                  'sensed_cusp_points': [list(c)], 'shared_boundary_point': None}
+                 for v, w, c in self.edges]
+        return {'nodes': nodes, 'edges': edges}
