@@ -68,29 +68,34 @@ def ablation_rows(desc, step: float, plane_step: float, fig7_step: float) -> lis
     return out
 
 
-def fig7_figure(desc, trend, path: Path) -> Path:
-    """Fig. 7 as curves: the r_y limit against r_x per r_z, markers by the deciding type."""
+def fig7_figure(desc, trends: dict, path: Path) -> Path:
+    """Fig. 7 as curves, one panel per rotation convention (``trends``: label -> rows): the
+    r_y limit against r_x per r_z, markers by the collision type that sets it."""
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
     markers = {'cable_cable': 'o', 'cable_body': 's', 'cable_cable+cable_body': 'D',
                'outside_frame': 'x', 'range': '^'}
-    fig, ax = plt.subplots(figsize=(6.4, 4.2))
-    for k, rz in enumerate(sorted({r['rz'] for r in trend})):
-        rows = [r for r in trend if r['rz'] == rz]
-        ax.plot([r['rx'] for r in rows], [r['ry_limit'] for r in rows], color=f'C{k}',
-                label=f'r_z = {rz:g} deg')
-        for r in rows:
-            ax.plot(r['rx'], r['ry_limit'], markers.get(r['decided_by'], '*'),
-                    color=f'C{k}', markersize=7)
+    fig, axes = plt.subplots(1, len(trends), figsize=(5.6 * len(trends), 4.4), sharey=True,
+                             squeeze=False)
+    for ax, (label, trend) in zip(axes[0], trends.items()):
+        for k, rz in enumerate(sorted({r['rz'] for r in trend})):
+            rows = [r for r in trend if r['rz'] == rz]
+            ax.plot([r['rx'] for r in rows], [r['ry_limit'] for r in rows], color=f'C{k}',
+                    label=f'r_z = {rz:g} deg')
+            for r in rows:
+                ax.plot(r['rx'], r['ry_limit'], markers.get(r['decided_by'], '*'),
+                        color=f'C{k}', markersize=6)
+        ax.set_xlabel('r_x (deg)')
+        ax.set_title(label, fontsize=9)
+        ax.grid(alpha=0.3)
     for name, m in markers.items():
-        ax.plot([], [], m, color='k', label=f'set by {name.replace("_", "-")}')
-    ax.set_xlabel('r_x (deg)')
-    ax.set_ylabel('largest |r_y| reachable from 0 (deg)')
-    ax.set_title(f'{desc.name} (fitted to Table II and the TOW box): Fig. 7 at the centre',
+        axes[0, 0].plot([], [], m, color='k', label=f'set by {name.replace("_", "-")}')
+    axes[0, 0].set_ylabel('largest |r_y| reachable from 0 (deg)')
+    axes[0, 0].legend(fontsize=7, ncol=2)
+    fig.suptitle(f'{desc.name} (arrangement fitted to Table II and the TOW box): Fig. 7 at the '
+                 'centre; the paper: the limit shrinks with r_x, set by cable-body contact',
                  fontsize=9)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=7, ncol=2)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -151,9 +156,11 @@ def write_report(out_dir: Path, quick: bool = False) -> list:
     pub = pf.published_table(desc, quick=quick)
     ablation = ablation_rows(desc, step, plane_step, fig7_step)
     sens = pf.anchor_sensitivity(desc, samples=3 if quick else 12, spread_m=0.03, quick=quick)
-    curves = pf.fig7_trend(desc, rx_deg=tuple(float(v) for v in range(0, 76, 5)),
-                           step_deg=fig7_step)
-    png = fig7_figure(desc, [r.__dict__ for r in curves], out_dir / 'workspace_fig7.png')
+    rx_fine = tuple(float(v) for v in range(0, 76, 5))
+    curves = {f'{name} axes (R = {order})': [
+        r.__dict__ for r in pf.fig7_trend(desc, rx_deg=rx_fine, step_deg=fig7_step, axes=name)]
+        for name, order in (('moving', 'Rx Ry Rz'), ('fixed', 'Rz Ry Rx'))}
+    png = fig7_figure(desc, curves, out_dir / 'workspace_fig7.png')
     elapsed = time.perf_counter() - start
 
     cmd = ('python -c "from pathlib import Path; from cable_robot_pkg.cdrpm.report import '
@@ -181,7 +188,9 @@ def write_report(out_dir: Path, quick: bool = False) -> list:
                       r['outside_frame'], r['cable_cable'], r['cable_body'], r['total_points'])
                      for r in pub['table2']])
     lines += ['', '## Fig. 7 at the centre: the r_y limit and what sets it', '',
-              f'![Fig. 7 curves]({png.name})', '']
+              f'![Fig. 7 curves]({png.name})', '',
+              'Moving axes (R = Rx Ry Rz, the convention of IV-C and of this package); the '
+              'fixed-axes panel of the picture uses R = Rz Ry Rx.', '']
     lines += _table(['r_z', 'r_x', 'largest r_y (deg)', 'set by'],
                     [(f'{r["rz"]:g}', f'{r["rx"]:g}', _fmt(r['ry_limit'], 0),
                       r['decided_by'].replace('_', '-')) for r in pub['fig7']])
