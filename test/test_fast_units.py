@@ -291,11 +291,12 @@ def _kinematic_isolation_run(cfg, mode, latency, duration=8.0):
 def test_isolation_controller_on_kinematic_plant(cfg):
     on = _kinematic_isolation_run(cfg, 'predictive', 0.02)
     assert on < 0.002                                      # ~40 mm base motion -> < 2 mm
-    naive_fast = _kinematic_isolation_run(cfg, 'naive', 0.0)
-    naive_slow = _kinematic_isolation_run(cfg, 'naive', 0.08)
-    assert naive_fast < 0.02
-    assert naive_slow > 5 * naive_fast                    # delay-induced degradation
-    assert _kinematic_isolation_run(cfg, 'predictive', 0.08) < naive_slow
+    lu_fast = _kinematic_isolation_run(cfg, 'lu', 0.0)
+    lu_slow = _kinematic_isolation_run(cfg, 'lu', 0.08)
+    assert lu_fast < 0.02
+    assert lu_slow > 5 * lu_fast                          # delay-induced degradation
+    assert _kinematic_isolation_run(cfg, 'predictive', 0.08) < lu_slow
+    assert _kinematic_isolation_run(cfg, 'cheng', 0.02) < 0.004
 
 
 def test_predictor_schedule_bounds_loop_gain_without_lag(cfg):

@@ -15,6 +15,8 @@ Every ``1/rate`` s it
 and publishes ``/fast/cables/command`` (JointState: position = unstretched length, velocity =
 winch speed), ``/fast/orienting/command`` (hinge angles) and ``/fast/trolley_target``.
 Without a fresh trolley measurement (``dropout_timeout``) it holds the winches and warns.
+With ``without: tracker_feedback`` the winches follow the cable inverse kinematics alone
+(open loop, no PID correction, trolley frames ignored).
 """
 import time
 
@@ -23,8 +25,8 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from sensor_msgs.msg import JointState
 
-from cable_robot_pkg.fast.cables import InfeasibleTensionError
-from cable_robot_pkg.fast.pid import WinchController
+from cable_robot_pkg.fast.configuration import parse_without
+from cable_robot_pkg.fast.pid import CoarseController
 from cable_robot_pkg.fast.ros_messages import (
     HINGE_NAMES,
     TOPICS,
@@ -35,6 +37,7 @@ from cable_robot_pkg.fast.ros_messages import (
     pose_from_msg,
     pose_msg,
 )
+from paramotion.errors import UserError
 from paramotion.node import Param, ParamotionNode, run_node
 from paramotion.qos import SENSOR_QOS, STATE_QOS
 
@@ -53,6 +56,9 @@ class CablePidNode(ParamotionNode):
               max=100.0, read_only=True),
         Param('kd', -1.0, 'Derivative gain per winch (s); < 0: config value.', min=-1.0,
               max=10.0, read_only=True),
+        Param('without', '', 'Comma-separated constructs switched off (tracker_feedback: '
+              'open-loop cable IK; the others concern the isolation controller).',
+              read_only=True),
         Param('dropout_timeout', 0.2, 'Hold the winches when the trolley measurement is older '
               'than this (s).', min=0.01, max=10.0),
     )
@@ -64,7 +70,10 @@ class CablePidNode(ParamotionNode):
         for name in ('kp', 'ki', 'kd'):
             if getattr(self.params, name) >= 0:
                 cc[name] = getattr(self.params, name)
-        self.winches = WinchController.from_config(self.cfg)
+        self.dt = 1.0 / self.params.rate
+        open_loop = 'tracker_feedback' in parse_without(self.params.without, "parameter 'without'")
+        self.ctl = CoarseController(self.cfg, self.dt, open_loop)
+        self.winches = self.ctl.winches
         self.names = list(self.cfg.cables.names)
         self.target = None
         self.trolley = None
@@ -73,7 +82,6 @@ class CablePidNode(ParamotionNode):
         self.update_times = []
         self.holding = False
         self._last_warn = -10.0
-        self._last_tension_plan = None
         self.create_subscription(PoseStamped, TOPICS['feed_target'], self._on_target, STATE_QOS)
         self.create_subscription(PoseStamped, TOPICS['tracker_trolley'], self._on_trolley,
                                  SENSOR_QOS)
@@ -84,10 +92,13 @@ class CablePidNode(ParamotionNode):
         self.target_pub = self.create_publisher(PoseStamped, TOPICS['trolley_target'],
                                                 STATE_QOS)
         self.diag_pub = self.create_publisher(DiagnosticArray, TOPICS['diagnostics'], STATE_QOS)
-        self.dt = 1.0 / self.params.rate
         self.create_timer(self.dt, self._tick)
 
     def check_params(self, values):
+        try:
+            parse_without(values['without'], "parameter 'without'")
+        except UserError as exc:
+            return str(exc)
         return check_config_param(values['config'])
 
     def _now(self):
@@ -124,51 +135,31 @@ class CablePidNode(ParamotionNode):
             return
         start = time.perf_counter()
         now = self._now()
-        cfg = self.cfg
         feed_p, feed_R = self.target
-        trolley_p, (alpha, beta), _, _ = cfg.chain.coarse_targets(feed_p, feed_R)
+        trolley_p, (alpha, beta) = self.ctl.targets(feed_p, feed_R)
         stamp = self.get_clock().now().to_msg()
         self.target_pub.publish(pose_msg(stamp, 'map', trolley_p, np.eye(3)))
         self.hinge_pub.publish(joint_state_msg(stamp, HINGE_NAMES, [alpha, beta]))
-        try:
-            # The tension plan changes slowly along a track: re-plan after 1 mm of motion.
-            plan = self._last_tension_plan
-            if plan is None or np.linalg.norm(plan[0] - trolley_p) > 1e-3:
-                self._last_tension_plan = (trolley_p, cfg.tension_targets(trolley_p, feed_R))
-            tensions = self._last_tension_plan[1]
-        except InfeasibleTensionError as exc:
-            if self._last_tension_plan is None:
-                self._warn(now, f'target unreachable: {exc}')
-                return
-            tensions = self._last_tension_plan[1]
-            self._warn(now, f'target outside the tension-feasible workspace: {exc}')
-        lengths = cfg.cables.lengths(trolley_p, np.eye(3))
-        feedforward = cfg.cables.unstretched_for(lengths, tensions)
         stale = self.trolley is None or now - self.trolley_arrival > self.params.dropout_timeout
-        if stale:
-            if self.winches.command is None:
-                return
+        if stale and not self.ctl.open_loop and self.ctl.winches.command is not None:
             self.holding = True
             self._warn(now, 'no trolley tracker measurement for '
                        f'{self.params.dropout_timeout:g} s: holding the winches')
-            command, rates = self.winches.command, np.zeros(len(self.names))
-        else:
-            if self.holding:
-                self.get_logger().info('trolley tracker measurements back: winch control '
-                                       'resumed')
-                arr = DiagnosticArray()
-                arr.header.stamp = stamp
-                arr.status = [DiagnosticStatus(level=DiagnosticStatus.OK,
-                                               name='fast_cable_controller',
-                                               message='trolley measurements back: resumed')]
-                self.diag_pub.publish(arr)
+        elif not stale and self.holding:
             self.holding = False
-            error = lengths - cfg.cables.lengths(*self.trolley)
-            command, rates = self.winches.update(self.dt, feedforward, error, self.tensions)
-            if self.winches.floor_active.any():
-                self._warn(now, 'tension floor: not paying out ' + ', '.join(
-                    n for n, a in zip(self.names, self.winches.floor_active) if a))
-        self.cmd_pub.publish(joint_state_msg(stamp, self.names, command, rates))
+            self.get_logger().info('trolley tracker measurements back: winch control resumed')
+            arr = DiagnosticArray()
+            arr.header.stamp = stamp
+            arr.status = [DiagnosticStatus(level=DiagnosticStatus.OK,
+                                           name='fast_cable_controller',
+                                           message='trolley measurements back: resumed')]
+            self.diag_pub.publish(arr)
+        out = self.ctl.update(feed_p, feed_R, None if stale else self.trolley, self.tensions)
+        for note in self.ctl.notes:
+            self._warn(now, note)
+        if out is None:
+            return
+        self.cmd_pub.publish(joint_state_msg(stamp, self.names, *out))
         self.update_times.append(time.perf_counter() - start)
 
 

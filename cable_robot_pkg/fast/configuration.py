@@ -37,8 +37,28 @@ DEFAULT_CONFIG = os.path.join(os.path.dirname(__file__), 'config', 'fast.yaml')
 
 CABLE_KINDS = ('drive', 'suspension', 'pretension')
 TRACK_KINDS = ('circle', 'meridian', 'hold')
+LEG_ACTUATORS = ('servo', 'force')
 SPECTRA = ('kaimal', 'davenport', 'white')
-ISOLATION_MODES = ('predictive', 'naive')
+#: Isolation controllers: ``lu`` (PID on direct terminal feedback, Lu et al.), ``cheng`` (base
+#: position prediction + the legs' PD, Cheng et al.), ``predictive`` (the project's own).
+ISOLATION_MODES = ('lu', 'cheng', 'predictive')
+#: Constructs that ``--without NAME`` (node parameter and launch argument ``without``) removes.
+ABLATIONS = ('tracker_feedback', 'isolation', 'prediction')
+
+
+def parse_without(value, name='without') -> frozenset:
+    """Ablation names from a comma-separated string or a list of strings; a name that is not
+    one of :data:`ABLATIONS` raises :class:`UserError` with one line naming ``name``."""
+    if isinstance(value, str):
+        items = [x.strip() for x in value.split(',')]
+    else:
+        items = [str(x).strip() for x in value or ()]
+    items = [x for x in items if x]
+    unknown = [x for x in items if x not in ABLATIONS]
+    if unknown:
+        raise UserError(f'{name} {", ".join(unknown)!s}: unknown construct; known: '
+                        f'{", ".join(ABLATIONS)}')
+    return frozenset(items)
 
 
 #: Sections whose keys are names chosen by the user (towers, anchors), not fixed fields.
@@ -312,8 +332,10 @@ def _gough_stewart(r, raw):
     """The isolator: ``(geometry, leg_min, leg_max, envelope position, envelope rotation)``."""
     gs = 'gough_stewart'
     for key in ('base_radius', 'platform_radius', 'nominal_height', 'upper_mass', 'feed_mass',
-                'leg_mass', 'drive_force_max'):
+                'leg_mass', 'drive_force_max', 'actuator_stiffness', 'actuator_damping',
+                'actuator_bandwidth_hz'):
         r.num(f'{gs}.{key}', 0.0, lo_open=True)
+    r.choice(f'{gs}.actuator', LEG_ACTUATORS)
     for key in ('base_half_angle_deg', 'platform_half_angle_deg'):
         r.num(f'{gs}.{key}', 0.0, 30.0, lo_open=True)
     leg_min = r.num(f'{gs}.leg_min', 0.0, lo_open=True)
@@ -376,8 +398,8 @@ def _check_tracker_and_controllers(r, raw, leg_min, leg_max):
         r.fail('isolation.rate', f'= {iso_rate:g} Hz must exceed cable_controller.rate = '
                f'{cable_rate:g} Hz (fine loop faster than the coarse loop)')
     r.choice('isolation.mode', ISOLATION_MODES)
-    for key in ('trim_gain', 'process_noise', 'process_noise_rotation', 'naive_kp', 'naive_ki',
-                'stroke_margin'):
+    for key in ('trim_gain', 'process_noise', 'process_noise_rotation', 'lu_kp', 'lu_ki',
+                'lu_kd', 'lu_delay_limit', 'stroke_margin'):
         r.num(f'isolation.{key}', 0.0)
     r.num('isolation.dropout_timeout', 0.0, lo_open=True)
     r.num('isolation.lead', -0.05, 0.1)

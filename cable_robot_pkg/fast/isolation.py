@@ -1,56 +1,42 @@
 """Gough-Stewart vibration isolation of the feed on the vibrating trolley (the fine loop).
 
-Cheng, Ren, Dai (Sec. I) isolate the receiver platform of a Gough-Stewart platform whose base
-(the cable car) vibrates in the wind, with "a simple control law of the prediction of the base
-platform and proportional derivative (PD) feedback". Lu, Zhu, Ren report that the direct terminal
-feedback loop through the optical trackers becomes unstable when the measurement is delayed.
-This module implements both loops so that the difference can be measured:
+Three controllers, selected by ``mode`` (``configuration.ISOLATION_MODES``):
 
-**Predictive (shipped) controller** -- :class:`IsolationController` with ``mode='predictive'``:
+``lu`` -- Lu, Zhu, Ren (Abstract): "standard proportional-integral-derivative controllers with
+direct terminal feedback from the optical sensors". PID on the latest tracked feed error, in
+velocity form on the commanded relative pose, as if the delayed measurement were current (no
+capture stamps, no base model). A loop gain ``lu_ki`` with a delay ``tau`` loses stability
+near ``lu_ki * tau ~ pi / 2``: the delay-induced instability the paper reports. The optional
+cure ``lu_delay_limit`` schedules the integral gain down to ``lu_delay_limit / tau`` for the
+measured latency ``tau``.
 
-1. The tracker's base (upper platform) poses carry their capture stamps. A constant-acceleration
-   Kalman filter per pose coordinate (:class:`PosePredictor`; position, and rotation vector
-   relative to a reference attitude) is updated at the capture times and *predicted* forward to
-   ``now + lead``: the tracker latency is compensated instead of being fed back. The same
-   platform is also measured through two other sensor chains and fused at the same stamps:
-   trolley tracker + hinge encoders (chain kinematics) and feed tracker + leg encoders (the
-   shared forward kinematics), which averages the tracker noise.
-2. The desired lower-platform pose relative to the predicted base follows from the feed target
-   (plus a slow trim, step 4): ``p_rel = R_b^T (p_d - p_b)``, ``R_rel = R_b^T R_d``.
-3. The shared inverse kinematics (:func:`paramotion.gough_stewart.inverse_kinematics`) turns
-   it into leg lengths, and a finite difference of the same chain into leg rates; lengths are
-   clipped to the stroke minus a margin. The leg drives close a local PD around these commands
-   at the physics rate (in the simulator: the actuator's servo).
-4. The tracked feed pose closes a *slow* integral trim on the target (gain ``trim_gain``, 1/s)
-   that removes steady offsets (leg compliance, hinge sag); its delay margin is
-   ``pi / (2 trim_gain)`` seconds, far beyond any tracker latency.
+``cheng`` -- Cheng, Ren, Dai (Sec. I): "a simple control law of the prediction of the base
+platform and proportional derivative (PD) feedback". The tracked base (upper platform) pose is
+filtered by a constant-acceleration Kalman filter (:class:`PosePredictor`, fixed bandwidth) and
+extrapolated with its velocity across the measured latency; the desired feed pose relative to
+the predicted base, through the shared inverse kinematics, gives leg lengths and rates, and
+the leg drives close the PD around them (:mod:`cable_robot_pkg.fast.plant`). No feed feedback.
 
-5. The two platforms are dynamically coupled (Cheng et al.): leg reaction forces move the
-   base, which the tracker sees again, so the predictor sits inside a loop. Extrapolating a
-   filtered [p, v, a] estimate across the latency is a phase lead whose gain grows with
-   frequency and latency (:func:`predictor_response`; the rotation predictor's peak
-   ``max|H|``, near 14 Hz, is 4.2 at 20 ms, 6.2 at 30 ms, 8.6 at 40 ms, 11.7 at 50 ms).
-   Measured in the simulator with full compensation: the loop is stable at 30 ms, slowly
-   unstable at 40 ms (19 Hz) and diverges within a second at 50 ms (14-15 Hz: trolley and
-   upper platform rocking against the feed; a 0.2 deg base rotation amplified to a 1.5 deg
-   predicted rotation, i.e. a structural coupling of ~0.14; rigid-body estimate
-   ``m_feed h^2 / I_trolley`` ~ 0.1). Turning the sensor fusion off only slowed the growth
-   (fewer views = lower predictor bandwidth). A *lagging* compensation, on the other hand, is
-   negative damping of the trolley's lightly damped 1.6 Hz rocking mode (seen when a
-   low-bandwidth predictor lagged there at 100 ms). :func:`schedule_predictor` therefore
-   re-tunes the predictor to the *measured* latency, frame period and number of fused views:
-   it keeps ``g * max|H| <= peak_gain_max`` (4, a gain margin of 1.6-2.2 over the measured
-   boundary of 6.2-8.6), allows no lag in the trolley's ``vibration_band`` (0.3-2 Hz), and
-   under those constraints picks the process noise ``q`` (bandwidth) and compensation gain
-   ``g`` that leave the least residual base motion, weighted by the base motion spectrum
-   measured from the tracker over the last 20 s. ``g < 1`` scales the predicted vibration
-   about a 1 s low-passed base reference.
+``predictive`` -- the project's own: the same predictor with (1) two more views of the base
+fused at the same capture stamps (trolley tracker + hinge encoders; feed tracker + leg
+encoders through the shared forward kinematics), (2) second-order extrapolation with the
+bandwidth and compensation gain re-scheduled to the measured latency
+(:func:`schedule_predictor`: ``g * max|H| <= peak_gain_max`` and no lag in the trolley's
+``vibration_band``, weighted by the base motion spectrum measured from the tracker), and
+(3) a slow integral trim on the tracked feed error (gain ``trim_gain``, delay margin
+``pi / (2 trim_gain)`` s) that removes steady offsets.
 
-**Naive terminal-feedback loop** -- ``mode='naive'``: PI on the latest tracked feed error, in
-velocity form on the commanded relative pose, ignoring capture stamps and without base
-prediction. To reject vibration it needs a high gain, and a loop gain ``naive_ki`` with a delay
-``tau`` loses stability near ``naive_ki * tau ~ pi / 2`` -- the delay-induced instability of
-Lu et al. The latency sweep of ``paramotion fast sweep`` shows it.
+Why the schedule: the platforms are dynamically coupled (Cheng et al.), so the leg reaction
+forces move the base, which the tracker sees again, and the predictor sits inside that loop.
+Extrapolating a filtered [p, v, a] estimate across the latency is a phase lead whose gain grows
+with frequency and latency (:func:`predictor_response`); an unbounded gain makes the trolley and
+upper platform oscillate against the feed at 14-19 Hz; a lagging compensation is negative
+damping of the trolley's 0.3-2 Hz modes.
+
+Ablations (``without``): ``prediction`` uses the latest base estimate at its capture time
+(no extrapolation; ``lu`` has none to remove); ``tracker_feedback`` ignores every tracker
+frame and computes the legs open loop from the trajectory (the base assumed at its commanded
+pose); ``isolation`` holds the legs at their nominal lengths.
 
 Faults: a base measurement that is not finite is dropped; when no valid base measurement has
 arrived for ``dropout_timeout`` the controller *holds* the last leg command (zero rate) and
@@ -63,12 +49,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from paramotion.gough_stewart import (
+    GoughStewartGeometry,
     SingularPoseError,
     UnreachablePoseError,
     forward_kinematics,
     inverse_kinematics,
 )
 from paramotion.rotations import matrix_from_rotvec, rotvec_from_matrix
+
+MODES = ('lu', 'cheng', 'predictive')
 
 
 def _transition(dt):
@@ -211,9 +200,13 @@ class ConstantAccelerationKF:
         self.x = self.x + np.outer(K, np.asarray(z) - self.x[0])
         self.P = self.P - np.outer(K, self.P[0])
 
-    def predict(self, t):
-        """State [p, v, a] (3, m) extrapolated to time ``t`` (no update)."""
-        return _transition(t - self.t) @ self.x
+    def predict(self, t, order=2):
+        """State [p, v, a] (3, m) extrapolated to time ``t`` (no update); ``order`` 1
+        extrapolates with the velocity only."""
+        F = _transition(t - self.t)
+        if order < 2:
+            F[0, 2] = F[1, 2] = 0.0
+        return F @ self.x
 
 
 class PosePredictor:
@@ -257,10 +250,11 @@ class PosePredictor:
         self.last_stamp = stamp
         return True
 
-    def predict(self, t):
-        """(position, rotation, velocity, angular velocity in the reference frame) at ``t``."""
-        xp = self.pos.predict(t)
-        xr = self.rot.predict(t)
+    def predict(self, t: float, order: int = 2) -> tuple:
+        """(position, rotation, velocity, angular velocity in the reference frame) at ``t``,
+        extrapolated with [p, v, a] (``order`` 2) or with [p, v] only (``order`` 1)."""
+        xp = self.pos.predict(t, order)
+        xr = self.rot.predict(t, order)
         R = self.R_ref @ matrix_from_rotvec(xr[0])
         return xp[0], R, xp[1], self.R_ref @ xr[1]
 
@@ -358,20 +352,32 @@ class LegCommand:
 class IsolationController:
     """Leg commands that keep the feed at its target while the upper platform vibrates."""
 
-    def __init__(self, geometry, nominal_relative, mode='predictive', lead=0.005,
-                 trim_gain=1.5, trim_limit=(0.03, math.radians(0.5)), naive_kp=0.3,
-                 naive_ki=40.0, stroke_margin=0.005, dropout_timeout=0.1,
-                 process_noise=20.0, process_noise_rotation=10.0, position_std=0.001,
-                 rotation_std=math.radians(0.01), peak_gain_max=4.0,
-                 vibration_band=(0.3, 2.0), slow_time=1.0, chain=None, fuse=True):
-        if mode not in ('predictive', 'naive'):
+    def __init__(self, geometry: GoughStewartGeometry, nominal_relative: tuple,
+                 mode: str = 'predictive', lead: float = 0.005, trim_gain: float = 1.5,
+                 trim_limit: tuple = (0.03, math.radians(0.5)), lu_kp: float = 0.3,
+                 lu_ki: float = 40.0, lu_kd: float = 0.0, lu_delay_limit: float = 0.0,
+                 stroke_margin: float = 0.005, dropout_timeout: float = 0.1,
+                 process_noise: float = 20.0, process_noise_rotation: float = 10.0,
+                 position_std: float = 0.001, rotation_std: float = math.radians(0.01),
+                 peak_gain_max: float = 4.0, vibration_band: tuple = (0.3, 2.0),
+                 slow_time: float = 1.0, chain=None, fuse: bool = True,
+                 without: frozenset = frozenset()):
+        if mode not in MODES:
             raise ValueError(f'unknown isolation mode {mode!r}')
         self.geometry = geometry
         self.mode = mode
+        self.without = frozenset(without)
+        self.open_loop = 'tracker_feedback' in self.without
+        self.predict_base = 'prediction' not in self.without
+        if self.open_loop and chain is None:
+            raise ValueError('without tracker_feedback needs the chain (trajectory -> base)')
+        fuse = fuse and mode == 'predictive'
         self.lead = lead
         self.trim_gain = trim_gain
         self.trim_limit = trim_limit
-        self.naive_kp, self.naive_ki = naive_kp, naive_ki
+        self.lu_kp, self.lu_ki, self.lu_kd = lu_kp, lu_ki, lu_kd
+        self.lu_delay_limit = lu_delay_limit
+        self.lu_derivative = np.zeros(6)
         self.lo = geometry.leg_min + stroke_margin
         self.hi = geometry.leg_max - stroke_margin
         self.timeout = dropout_timeout
@@ -382,8 +388,8 @@ class IsolationController:
         self.nominal_p, self.nominal_R = (np.asarray(a, float) for a in nominal_relative)
         self.nominal_lengths = inverse_kinematics(geometry, self.nominal_p, self.nominal_R)
         self.trim = np.zeros(6)
-        self.naive_cmd = np.concatenate([self.nominal_p, np.zeros(3)])
-        self.naive_prev_error = None
+        self.lu_cmd = np.concatenate([self.nominal_p, np.zeros(3)])
+        self.lu_prev_error = None
         self.last_feed_time = None
         self.last_base_arrival = None
         self.last_base_R = None
@@ -419,20 +425,23 @@ class IsolationController:
         self.fk_guess = (self.nominal_p, self.nominal_R)
 
     @classmethod
-    def from_config(cls, cfg, mode=None):
-        """Build from a validated :class:`~cable_robot_pkg.fast.configuration.FastConfig`."""
+    def from_config(cls, cfg, mode: str | None = None, without=()) -> 'IsolationController':
+        """Build from a validated :class:`~cable_robot_pkg.fast.configuration.FastConfig`
+        (``mode`` None: the config's ``isolation.mode``; ``without``: ablation names)."""
         iso = cfg.raw['isolation']
         tr = cfg.raw['tracker']
         return cls(cfg.geometry, cfg.chain.nominal_relative_pose(),
                    mode=mode or iso['mode'], lead=iso['lead'], trim_gain=iso['trim_gain'],
-                   naive_kp=iso['naive_kp'], naive_ki=iso['naive_ki'],
+                   lu_kp=iso['lu_kp'], lu_ki=iso['lu_ki'], lu_kd=iso['lu_kd'],
+                   lu_delay_limit=iso['lu_delay_limit'],
                    stroke_margin=iso['stroke_margin'], dropout_timeout=iso['dropout_timeout'],
                    process_noise=iso['process_noise'],
                    process_noise_rotation=iso['process_noise_rotation'],
                    position_std=max(tr['noise_position'], 1e-4),
                    rotation_std=math.radians(max(tr['noise_orientation_deg'], 1e-3)),
                    peak_gain_max=iso['peak_gain_max'],
-                   vibration_band=iso['vibration_band'], chain=cfg.chain, fuse=iso['fuse'])
+                   vibration_band=iso['vibration_band'], chain=cfg.chain, fuse=iso['fuse'],
+                   without=frozenset(without))
 
     # ------------------------------------------------------------------ inputs
     def set_target(self, t, position, rotation):
@@ -571,25 +580,17 @@ class IsolationController:
         return True
 
     def add_feed(self, now, stamp, position, rotation):
-        """Tracked feed pose: integral trim (predictive) or the naive PI loop."""
+        """Tracked feed pose: the PID (``lu``), the integral trim and a base view
+        (``predictive``); ignored by ``cheng`` and without tracker feedback."""
         position = np.asarray(position, float)
         rotation = np.asarray(rotation, float)
         if not (np.all(np.isfinite(position)) and np.all(np.isfinite(rotation))):
             return False
-        if self.mode == 'naive':
-            # Direct terminal feedback: the latest error, as if it were current.
-            target = self.targets.latest()
-            if target is None or self.last_base_R is None:
-                return False
-            e = np.concatenate(pose_error(target[1], target[2], position, rotation))
-            dt = 0.0 if self.last_feed_time is None else now - self.last_feed_time
-            prev = e if self.naive_prev_error is None else self.naive_prev_error
-            step = self.naive_kp * (e - prev) + self.naive_ki * dt * e
-            Rb = self.last_base_R
-            self.naive_cmd[:3] += Rb.T @ step[:3]
-            self.naive_cmd[3:] += Rb.T @ step[3:]
-            self.naive_prev_error = e
-        else:
+        if self.open_loop:
+            return False
+        if self.mode == 'lu':
+            self._lu_step(now, position, rotation)
+        elif self.mode == 'predictive':
             if self.fuse:
                 base = self._base_from_feed(stamp, position, rotation)
                 if base is not None:
@@ -606,12 +607,43 @@ class IsolationController:
         self.last_feed_time = now
         return True
 
+    def lu_integral_gain(self) -> float:
+        """Integral gain of the ``lu`` PID: ``lu_ki``, or with the delay cure
+        (``lu_delay_limit > 0``) at most ``lu_delay_limit / tau`` for the measured latency
+        ``tau`` (the loop ``ki e^{-s tau} / s`` keeps a phase margin of
+        ``pi/2 - lu_delay_limit`` rad)."""
+        if self.lu_delay_limit <= 0.0 or not self.latency:
+            return self.lu_ki
+        return min(self.lu_ki, self.lu_delay_limit / self.latency)
+
+    def _lu_step(self, now, position, rotation):
+        """One PID step on the latest tracked feed error taken as current (velocity form:
+        ``du = kp de + ki e dt + kd d(de/dt)``, derivative low-passed over 10 ms), rotated
+        into the base frame of the latest base measurement."""
+        target = self.targets.latest()
+        if target is None or self.last_base_R is None:
+            return
+        e = np.concatenate(pose_error(target[1], target[2], position, rotation))
+        dt = 0.0 if self.last_feed_time is None else now - self.last_feed_time
+        prev = e if self.lu_prev_error is None else self.lu_prev_error
+        d_prev = self.lu_derivative.copy()
+        if dt > 0:
+            self.lu_derivative += dt / (0.01 + dt) * ((e - prev) / dt - self.lu_derivative)
+        step = self.lu_kp * (e - prev) + self.lu_integral_gain() * dt * e \
+            + self.lu_kd * (self.lu_derivative - d_prev)
+        Rb = self.last_base_R
+        self.lu_cmd[:3] += Rb.T @ step[:3]
+        self.lu_cmd[3:] += Rb.T @ step[3:]
+        self.lu_prev_error = e
+
     # ------------------------------------------------------------------ output
     def _base_command(self, t):
         """Base pose the legs compensate at ``t``: the slow base reference plus the gain-scaled
         predicted vibration about it."""
-        p_b, R_b, _, _ = self.base.predict(t)
-        if self.gain >= 1.0 or self.slow is None:
+        if not self.predict_base:
+            t = self.base.last_stamp           # the latest estimate, at its capture time
+        p_b, R_b, _, _ = self.base.predict(t, order=2 if self.mode == 'predictive' else 1)
+        if self.mode != 'predictive' or self.gain >= 1.0 or self.slow is None:
             return p_b, R_b
         _, p_s, R_s = self.slow
         g_p, g_r = self.gains
@@ -641,8 +673,20 @@ class IsolationController:
             self.clip_count += 1
         return np.clip(lengths, self.lo, self.hi), clipped
 
-    def update(self, now):
+    def _open_loop_update(self, latest):
+        """Legs from the trajectory alone: the base assumed at the pose the coarse loop
+        commands for the latest target (the trolley at its target, hinges at their angles)."""
+        _, _, p_u, R_u = self.chain.coarse_targets(latest[1], latest[2])
+        lengths, clipped = self._clip(inverse_kinematics(
+            self.geometry, R_u.T @ (latest[1] - p_u), R_u.T @ latest[2]))
+        self.command = LegCommand(lengths, np.zeros(6), clipped, False)
+        return self.command
+
+    def update(self, now: float) -> LegCommand:
         """Leg command (:class:`LegCommand`) for the current time ``now``."""
+        latest = self.targets.latest()
+        if self.open_loop and latest is not None:
+            return self._open_loop_update(latest)
         stale = (self.last_base_arrival is None
                  or now - self.last_base_arrival > self.timeout)
         latest = self.targets.latest()
@@ -650,13 +694,14 @@ class IsolationController:
             self.hold_count += 1
             self.command = LegCommand(self.command.lengths, np.zeros(6), False, True)
             return self.command
-        if self.mode == 'naive':
-            R = matrix_from_rotvec(self.naive_cmd[3:])
-            lengths, clipped = self._clip(inverse_kinematics(self.geometry, self.naive_cmd[:3], R))
+        if self.mode == 'lu':
+            R = matrix_from_rotvec(self.lu_cmd[3:])
+            lengths, clipped = self._clip(inverse_kinematics(self.geometry, self.lu_cmd[:3], R))
             rates = np.zeros(6)
         else:
-            self.schedule()
-            self._update_slow(now)
+            if self.mode == 'predictive':
+                self.schedule()
+                self._update_slow(now)
             h = 0.002
             v, w = self.targets.velocity()
             t0 = now + self.lead

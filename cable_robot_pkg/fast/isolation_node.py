@@ -2,9 +2,11 @@
 
 Runs :class:`cable_robot_pkg.fast.isolation.IsolationController` at ``rate`` Hz (above the
 cable loop's rate), clocked by the leg encoder stream (``/fast/legs/state``) like a drive's
-servo cycle: base (upper platform) prediction from stamped tracker poses, the shared
-Gough-Stewart inverse kinematics, stroke limits, slow trim on the tracked feed error
-(``mode: predictive``), or the naive direct terminal-feedback loop (``mode: naive``).
+servo cycle, in one of three modes: ``lu`` (PID on direct terminal feedback, Lu et al.),
+``cheng`` (base position prediction + the legs' PD, Cheng et al.) or ``predictive`` (the
+project's own: fused, latency-scheduled base prediction + slow trim on the tracked feed error).
+``without`` (comma-separated) removes constructs: ``tracker_feedback`` (legs open loop from
+the trajectory), ``isolation`` (legs held nominal), ``prediction`` (no extrapolation).
 
 Inputs: ``/fast/feed_target``, ``/fast/tracker/{upper_platform,trolley,feed}``,
 ``/fast/legs/state`` and ``/fast/orienting/state`` (encoders, for fusing the trolley and feed
@@ -24,6 +26,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from sensor_msgs.msg import JointState
 
+from cable_robot_pkg.fast.configuration import ABLATIONS, ISOLATION_MODES, parse_without
 from cable_robot_pkg.fast.isolation import IsolationController
 from cable_robot_pkg.fast.ros_messages import (
     HINGE_NAMES,
@@ -36,6 +39,7 @@ from cable_robot_pkg.fast.ros_messages import (
     pose_from_msg,
     stamp_seconds,
 )
+from paramotion.errors import UserError
 from paramotion.node import Param, ParamotionNode, run_node
 from paramotion.qos import SENSOR_QOS, STATE_QOS
 
@@ -49,16 +53,20 @@ class IsolationNode(ParamotionNode):
         Param('rate', 200.0, 'Control rate (Hz, sim time); must exceed the cable loop rate.',
               min=1.0, max=2000.0, read_only=True),
         Param('enabled', True, 'false: hold the legs at nominal length (isolation off).'),
-        Param('mode', 'config', 'predictive (Cheng et al.), naive (direct terminal PI), or '
-              "config (the config's isolation.mode).",
-              choices=('config', 'predictive', 'naive'), read_only=True),
+        Param('mode', 'config', 'lu (Lu et al.: PID on terminal feedback), cheng (Cheng et '
+              "al.: base prediction + leg PD), predictive (ours), or config (the config's "
+              'isolation.mode).', choices=('config',) + ISOLATION_MODES, read_only=True),
+        Param('without', '', 'Comma-separated constructs switched off: ' + ', '.join(ABLATIONS)
+              + ' (empty: none).', read_only=True),
     )
 
     def __init__(self, node_name='fast_isolation_controller', **kwargs):
         super().__init__(node_name, **kwargs)
         self.cfg = config_from_param(self.params.config)
         mode = None if self.params.mode == 'config' else self.params.mode
-        self.ctl = IsolationController.from_config(self.cfg, mode=mode)
+        self.without = parse_without(self.params.without, "parameter 'without'")
+        self.enabled = self.params.enabled and 'isolation' not in self.without
+        self.ctl = IsolationController.from_config(self.cfg, mode=mode, without=self.without)
         self.update_times = []
         self.hold_events = 0
         self.recoveries = 0
@@ -79,6 +87,10 @@ class IsolationNode(ParamotionNode):
         reason = check_config_param(values['config'])
         if reason:
             return reason
+        try:
+            parse_without(values['without'], "parameter 'without'")
+        except UserError as exc:
+            return str(exc)
         cable_rate = config_from_param(values['config']).raw['cable_controller']['rate']
         if values['rate'] <= cable_rate:
             return (f"parameter 'rate' = {values['rate']} must exceed the cable loop rate "
@@ -129,7 +141,7 @@ class IsolationNode(ParamotionNode):
         self.diag_pub.publish(arr)
 
     def _tick(self, now, stamp):
-        if not self.params.enabled:
+        if not self.enabled:
             self.pub.publish(joint_state_msg(stamp, LEG_NAMES, self.ctl.nominal_lengths,
                                              np.zeros(6)))
             return
@@ -147,7 +159,7 @@ class IsolationNode(ParamotionNode):
             self._holding = False
             self.recoveries += 1
             self._diagnose(DiagnosticStatus.OK, 'tracker measurements back: isolation resumed')
-        if self.ctl.last_base_arrival is None:
+        if self.ctl.last_base_arrival is None and not self.ctl.open_loop:
             return   # nothing measured yet: the simulator keeps the legs at nominal length
         self.pub.publish(joint_state_msg(stamp, LEG_NAMES, cmd.lengths, cmd.rates))
         self.update_times.append(time.perf_counter() - start)

@@ -52,11 +52,14 @@ class OpticalTrackerNode(ParamotionNode):
               max=1.0),
         Param('seed', 1, 'Seed of the noise generator.', min=0, max=2 ** 31 - 1,
               read_only=True),
+        Param('offset', [0.0, 0.0, 0.0], 'Calibration offset added to every measured '
+              'position, map frame (m): an injected tracker error.', read_only=True),
     )
 
     def __init__(self, node_name='fast_tracker', **kwargs):
         super().__init__(node_name, **kwargs)
         self.rng = np.random.default_rng(self.params.seed)
+        self.offset = np.asarray(self.params.offset, float)
         self.truth = {}
         self.last_capture = {}
         self.queue = deque()
@@ -68,6 +71,12 @@ class OpticalTrackerNode(ParamotionNode):
                                      lambda m, b=body: self._on_truth(b, m), STATE_QOS)
             self.pubs[body] = self.create_publisher(PoseStamped, TOPICS[out_key], SENSOR_QOS)
         self.next_capture = 0.0
+
+    def check_params(self, values):
+        offset = values['offset']
+        if len(offset) != 3 or not all(math.isfinite(x) for x in offset):
+            return f"parameter 'offset' = {list(offset)} must be 3 finite numbers (m)"
+        return None
 
     def _on_truth(self, body, msg):
         """Event-driven sensor: the camera frame clock is the truth stream's sim time, so
@@ -111,7 +120,7 @@ class OpticalTrackerNode(ParamotionNode):
                 position = np.full(3, np.nan)
                 rotation = np.full((3, 3), np.nan)
             else:
-                position = position + dn
+                position = position + dn + self.offset
                 rotation = matrix_from_rotvec(dr) @ rotation
             self.queue.append((t_cap + p.latency, body, msg.header.stamp, position, rotation))
         self._release(now)

@@ -110,3 +110,59 @@ class WinchController:
         self.blocked = blocked
         self.command = self.command + limited
         return self.command.copy(), limited / dt if dt > 0 else np.zeros_like(limited)
+
+
+class CoarseController:
+    """The coarse loop of one control period: the trolley target and hinge angles for a feed
+    target (:class:`~cable_robot_pkg.fast.focal_surface.FeedSupportChain`), the cable inverse
+    kinematics there (tension distribution re-planned after 1 mm of target motion) as
+    feedforward, and the per-winch PID on ``L(target) - L(tracked trolley pose)``.
+
+    ``open_loop`` (``without tracker_feedback``): feedforward only, the trolley measurement is
+    not used. ``notes`` collects this period's warnings (for the node's log/diagnostics).
+    """
+
+    def __init__(self, cfg, dt: float, open_loop: bool = False):
+        self.cfg = cfg
+        self.dt = float(dt)
+        self.open_loop = bool(open_loop)
+        self.winches = WinchController.from_config(cfg)
+        self.plan = None
+        self.notes = []
+
+    def targets(self, feed_p, feed_R) -> tuple:
+        """``(trolley target position, (alpha, beta))`` for a feed target."""
+        trolley_p, hinge, _, _ = self.cfg.chain.coarse_targets(feed_p, feed_R)
+        return trolley_p, hinge
+
+    def update(self, feed_p, feed_R, trolley=None, tensions=None):
+        """Winch ``(commands, rates)`` for this period; ``trolley`` = tracked ``(p, R)`` or
+        None (no fresh measurement: the winches hold). None when the very first target is
+        outside the tension-feasible workspace."""
+        from cable_robot_pkg.fast.cables import InfeasibleTensionError
+        self.notes = []
+        cfg = self.cfg
+        trolley_p, _ = self.targets(feed_p, feed_R)
+        try:
+            if self.plan is None or np.linalg.norm(self.plan[0] - trolley_p) > 1e-3:
+                self.plan = (trolley_p, cfg.tension_targets(trolley_p, feed_R))
+        except InfeasibleTensionError as exc:
+            if self.plan is None:
+                self.notes.append(f'target unreachable: {exc}')
+                return None
+            self.notes.append(f'target outside the tension-feasible workspace: {exc}')
+        lengths = cfg.cables.lengths(trolley_p, np.eye(3))
+        feedforward = cfg.cables.unstretched_for(lengths, self.plan[1])
+        n = cfg.cables.n
+        if self.open_loop:
+            return self.winches.update(self.dt, feedforward, np.zeros(n), tensions)
+        if trolley is None:
+            if self.winches.command is None:
+                return None
+            return self.winches.command.copy(), np.zeros(n)
+        error = lengths - cfg.cables.lengths(*trolley)
+        out = self.winches.update(self.dt, feedforward, error, tensions)
+        if self.winches.floor_active.any():
+            self.notes.append('tension floor: not paying out ' + ', '.join(
+                name for name, a in zip(cfg.cables.names, self.winches.floor_active) if a))
+        return out

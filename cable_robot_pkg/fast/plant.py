@@ -9,9 +9,14 @@ Split between PyBullet and analytic models (chosen so that a 60 s run stays fast
   body tied to the six rod tips by ``JOINT_POINT2POINT`` constraints -- a closed kinematic chain,
   stiffened (``maxForce``, ``erp``, solver iterations) as NOTES.md found necessary. Leg and hinge
   reaction forces shake the trolley: the dynamic coupling of Cheng et al.
-- **Actuators**: hinge and leg servos are PyBullet's implicit position/velocity motors with a
-  force limit (the actuator's local PD loop; implicit so that a stiff servo is stable at 1 kHz).
-  Commands are position + velocity, held first-order between updates.
+- **Actuators**: hinge servos are PyBullet's implicit position/velocity motors with a torque
+  limit. Leg drives are either the same near-ideal implicit servo (``gough_stewart.actuator:
+  servo``) or a *force* drive (``actuator: force``): an explicit PD on the leg's length and
+  rate errors (``actuator_stiffness`` N/m, ``actuator_damping`` N s/m) plus the static leg
+  force that carries the feed at the nominal pose, through a first-order force lag
+  (``actuator_bandwidth_hz``) and clipped at ``drive_force_max`` -- a drive with finite
+  stiffness, bandwidth and force. Commands are position + velocity, held first-order between
+  updates.
 - **Cables analytically** (:mod:`cable_robot_pkg.fast.cables`): ten tension-only elastic cables
   whose wrench is applied to the trolley every step; cable mass/sag and pulley friction are
   neglected. Winches set the unstretched length, rate-limited to ``winch_speed_max``.
@@ -24,7 +29,7 @@ import numpy as np
 import pybullet
 
 from cable_robot_pkg.fast.focal_surface import hinge_rotation
-from paramotion.gough_stewart import inverse_kinematics
+from paramotion.gough_stewart import inverse_kinematics, jacobian
 from paramotion.rotations import quat_from_matrix
 
 _EYE_Q = [0.0, 0.0, 0.0, 1.0]
@@ -207,6 +212,10 @@ class FeedSupportPlant:
         self._leg_kp = [float(self.leg_gains[0])] * 6
         self._leg_kv = [float(self.leg_gains[1])] * 6
         self._leg_fmax = [float(self.leg_gains[2])] * 6
+        self.force_drive = gs.get('actuator', 'servo') == 'force'
+        self.leg_force = np.zeros(6)
+        if self.force_drive:
+            self._init_force_drive(gs)
         self._hinge_sent = None
         self.last_tensions = np.zeros(self.cables.n)
         self.last_lengths = lengths
@@ -214,6 +223,35 @@ class FeedSupportPlant:
         self.winch_rates = np.zeros(self.cables.n)
         self.wind_force = np.zeros(3)
         self.wind_torque = np.zeros(3)
+
+    def _init_force_drive(self, gs):
+        """Force drives: free the prismatic joints' default motors and compute the static
+        leg forces that hold the feed's weight at the nominal pose (``J^T f = -w``)."""
+        self.drive_kp = float(gs['actuator_stiffness'])
+        self.drive_kd = float(gs['actuator_damping'])
+        self.drive_tau = 1.0 / (2.0 * math.pi * float(gs['actuator_bandwidth_hz']))
+        pybullet.setJointMotorControlArray(self.body, self.ROD, pybullet.VELOCITY_CONTROL,
+                                           forces=[0.0] * 6, physicsClientId=self._cid)
+        rel_p, rel_R = self.chain.nominal_relative_pose()
+        _, _, _, up_R = self.chain.coarse_targets(*self.cfg.track.pose(self.t))
+        J = jacobian(self.geom, rel_p, rel_R)
+        weight = up_R.T @ np.array([0.0, 0.0, -9.81 * gs['feed_mass']])
+        self.static_leg_force = np.linalg.solve(J.T, -np.concatenate([weight, np.zeros(3)]))
+        self.leg_force = self.static_leg_force.copy()
+
+    def _apply_force_drive(self, target, rates):
+        """Explicit PD force of each leg drive, lagged by its bandwidth, clipped."""
+        cid = self._cid
+        states = pybullet.getJointStates(self.body, self.ROD, physicsClientId=cid)
+        q = np.array([st[0] for st in states]) + self.nominal_lengths
+        qd = np.array([st[1] for st in states])
+        demand = self.drive_kp * (target - q) + self.drive_kd * (rates - qd) \
+            + self.static_leg_force
+        self.leg_force += self.dt / (self.drive_tau + self.dt) * (demand - self.leg_force)
+        fmax = self._leg_fmax[0]
+        self.leg_force = np.clip(self.leg_force, -fmax, fmax)
+        pybullet.setJointMotorControlArray(self.body, self.ROD, pybullet.TORQUE_CONTROL,
+                                           forces=self.leg_force.tolist(), physicsClientId=cid)
 
     def _build_towers(self, raw):
         b = self.b
@@ -250,11 +288,14 @@ class FeedSupportPlant:
         cid = self._cid
         target = np.clip(self.leg_cmd + self.leg_rate_cmd * since, self.geom.leg_min,
                          self.geom.leg_max)
-        pybullet.setJointMotorControlArray(
-            self.body, self.ROD, pybullet.POSITION_CONTROL,
-            targetPositions=(target - self.nominal_lengths).tolist(),
-            targetVelocities=self.leg_rate_cmd.tolist(), positionGains=self._leg_kp,
-            velocityGains=self._leg_kv, forces=self._leg_fmax, physicsClientId=cid)
+        if self.force_drive:
+            self._apply_force_drive(target, self.leg_rate_cmd)
+        else:
+            pybullet.setJointMotorControlArray(
+                self.body, self.ROD, pybullet.POSITION_CONTROL,
+                targetPositions=(target - self.nominal_lengths).tolist(),
+                targetVelocities=self.leg_rate_cmd.tolist(), positionGains=self._leg_kp,
+                velocityGains=self._leg_kv, forces=self._leg_fmax, physicsClientId=cid)
         hinge = (float(self.hinge_cmd[0]), float(self.hinge_cmd[1]))
         if hinge != self._hinge_sent:
             kp, kv, tmax = self.hinge_gains
@@ -327,7 +368,7 @@ class FeedSupportPlant:
         states = self.b.getJointStates(self.body, self.ROD)
         q = np.array([s[0] for s in states]) + self.nominal_lengths
         v = np.array([s[1] for s in states])
-        f = np.array([s[3] for s in states])
+        f = self.leg_force.copy() if self.force_drive else np.array([s[3] for s in states])
         return q, v, f
 
     def leg_lengths_geometric(self):

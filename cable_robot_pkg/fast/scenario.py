@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from cable_robot_pkg.fast.configuration import ABLATIONS, ISOLATION_MODES, parse_without
 from paramotion.errors import UserError
 from paramotion.launch_xml import load as load_launch
 from paramotion.launch_xml import recorded_topics
@@ -36,7 +37,7 @@ SPEC_ORIENTATION_DEG = 0.1
 
 def run_graph(duration, config='', wind=1.0, latency=0.02, isolation=True, mode='config',
               bag_dir=None, tracker=None, wind_seed=-1, record_series=True, domain_id=None,
-              topics=None):
+              topics=None, without=()):
     """Run the FAST graph lock-step for ``duration`` sim seconds (private DDS domain unless
     ``domain_id`` is given).
 
@@ -54,7 +55,8 @@ def run_graph(duration, config='', wind=1.0, latency=0.02, isolation=True, mode=
         nodes, launch_topics = graph_from_launch(
             graph, LAUNCH_FILE, {'config': str(config or ''), 'wind': float(wind),
                                  'wind_seed': int(wind_seed), 'latency': tracker['latency'],
-                                 'isolation': bool(isolation), 'isolation_mode': mode},
+                                 'isolation': bool(isolation), 'isolation_mode': mode,
+                                 'without': ','.join(sorted(without))},
             extra_params={'fast_tracker': tracker})
         sim, trk, cab, iso = (nodes[n] for n in ('fast_sim', 'fast_tracker',
                                                  'fast_cable_controller',
@@ -91,6 +93,7 @@ def run_graph(duration, config='', wind=1.0, latency=0.02, isolation=True, mode=
             'series': series,
             'track': sim.cfg.track, 'chain': sim.cfg.chain, 'geometry': sim.cfg.geometry,
             'tension_limit_N': sim.cfg.raw['cables']['tension_max'],
+            'mode': iso.ctl.mode, 'without': sorted(iso.without),
         }
 
 
@@ -289,6 +292,11 @@ def _check_args(args):
         load_config(args.config)      # raises UserError before anything runs
     if args.settle >= args.duration:
         raise UserError(f'--settle {args.settle}: must be shorter than --duration')
+    mode = getattr(args, 'isolation_mode', 'config')
+    if mode not in ('config',) + ISOLATION_MODES:
+        raise UserError(f'--isolation-mode {mode!r}: must be one of config, '
+                        + ', '.join(ISOLATION_MODES))
+    args.without_set = parse_without(getattr(args, 'without', None) or (), '--without')
 
 
 def _run(args):
@@ -296,14 +304,17 @@ def _run(args):
     iso_on = args.isolation == 'on'
     with output_dir(args.out, args.overwrite) as tmp:
         run = run_graph(args.duration, args.config, args.wind, args.latency, iso_on,
-                        bag_dir=tmp / 'bag', record_series=False)
+                        mode=args.isolation_mode, bag_dir=tmp / 'bag', record_series=False,
+                        without=args.without_set)
         series = bag_series(tmp / 'bag')
         result, main_curves = evaluate(series, args.settle, run['tension_limit_N'],
                                        run['geometry'])
-        other = run_graph(args.duration, args.config, args.wind, args.latency, not iso_on)
+        other = run_graph(args.duration, args.config, args.wind, args.latency, not iso_on,
+                          mode=args.isolation_mode, without=args.without_set - {'isolation'})
         other_res, (t, fe, fr, te) = evaluate_run(other, args.settle)
         result.update({
-            'isolation': args.isolation, 'wind': args.wind, 'latency_s': args.latency,
+            'isolation': args.isolation, 'isolation_mode': run['mode'],
+            'without': run['without'], 'wind': args.wind, 'latency_s': args.latency,
             'duration_s': args.duration, 'config': args.config or 'default fast.yaml',
             'sim_time_s': run['sim_time_s'], 'wall_time_s': run['wall_time_s'],
             'real_time_factor': run['real_time_factor'],
@@ -508,6 +519,11 @@ def register(subparsers):
                         help='tracker latency in s (default 0.02)')
     parser.add_argument('--isolation', choices=('on', 'off'), default='on',
                         help='Gough-Stewart isolation (default on)')
+    parser.add_argument('--isolation-mode', default='config', metavar='MODE',
+                        help="lu (Lu et al.), cheng (Cheng et al.), predictive (ours); default: "
+                        "the config's isolation.mode")
+    parser.add_argument('--without', action='append', metavar='NAME',
+                        help='switch a construct off (repeatable): ' + ', '.join(ABLATIONS))
     parser.add_argument('--out', default=None, help='output directory (bag/, result.json, '
                         'fast.png); required for a run')
     parser.add_argument('--overwrite', action='store_true', help='replace --out if it exists')
