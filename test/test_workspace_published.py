@@ -54,7 +54,7 @@ def test_published_table_marks_fitted_and_held_out(neuron):
     use = {r['figure']: r['use'] for r in res['rows']}
     fitted = [f for f, u in use.items() if u == 'fitted']
     assert len(fitted) == 6 and all('in frame' in f or 'TOW +-30/30/10' in f for f in fitted)
-    assert len(res['rows']) == 21
+    assert len(res['rows']) == 22
     # Fitted figures agree by construction; the held-out Fig. 7 trend does not.
     assert all(r['agrees'] for r in res['rows'] if r['use'] == 'fitted')
     assert not res['fig7_verdict']['shrinks']

@@ -156,6 +156,8 @@ def write_report(out_dir: Path, quick: bool = False) -> list:
     pub = pf.published_table(desc, quick=quick)
     ablation = ablation_rows(desc, step, plane_step, fig7_step)
     sens = pf.anchor_sensitivity(desc, samples=3 if quick else 12, spread_m=0.03, quick=quick)
+    radii = pf.radius_sensitivity(desc, step=step, fig7_step=fig7_step)
+    sizes = pub['workpiece_sizes']
     rx_fine = tuple(float(v) for v in range(0, 76, 5))
     curves = {f'{name} axes (R = {order})': [
         r.__dict__ for r in pf.fig7_trend(desc, rx_deg=rx_fine, step_deg=fig7_step, axes=name)]
@@ -202,6 +204,12 @@ def write_report(out_dir: Path, quick: bool = False) -> list:
               'lost per type (a point may have several): '
               + ', '.join(f'{k.replace("_", "-")} {_fmt(v)} %'
                           for k, v in work['lost_percent'].items()) + '.', '']
+    lines += ['Other workpiece sizes (the paper gives none; W_x = W_y, plane step '
+              f'{0.05 if quick else 0.04} m):', '']
+    lines += _table(['W_x = W_y (m)', 'W_z (m)', 'share kept', 'closest approach'],
+                    [(f'{s["size_m"][0]:g}', f'{s["size_m"][2]:g}', _fmt(s['share'], 1, ' %'),
+                      _fmt(s['gap_m'], 2, ' m')) for s in sizes])
+    lines += ['']
     tow = pub['tow']
     lines += [f'TOW for +-30, +-30, +-10 deg: {_fmt(tow["tow_percent"])} % of the grid, '
               f'largest box {" x ".join(f"{v:.2f}" for v in tow["largest_box_m"] or [])} m; '
@@ -225,6 +233,14 @@ def write_report(out_dir: Path, quick: bool = False) -> list:
                     [(r['figure'], _fmt(r['nominal'], 2), _fmt(r['min'], 2),
                       _fmt(r['median'], 2), _fmt(r['mean'], 2), _fmt(r['max'], 2))
                      for r in sens['rows']])
+    lines += ['', '## Sensitivity to the cable radius (the paper gives none)', '']
+    lines += _table(['epsilon (mm)', 'Table II in frame (%)', 'Fig. 7 limit at r_x = 0 / 45',
+                     'set by at r_x = 45'],
+                    [(f'{1000 * r["radius_m"]:g}',
+                      ' / '.join(f'{v:.1f}' for v in r['table2_in_frame']),
+                      f'{_fmt(r["fig7"]["ry_limit_low"], 0)} / '
+                      f'{_fmt(r["fig7"]["ry_limit_high"], 0)} deg',
+                      r['fig7']['decided_high'].replace('_', '-')) for r in radii])
     lines += ['', '## Which candidate arrangements meet the held-out figures', '']
     lines += _heldout_lines(out_dir)
     md = out_dir / 'workspace.md'
