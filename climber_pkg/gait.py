@@ -5,7 +5,9 @@ ultrasonic distances, time) that returns actions (clamp commands, leg length com
 poses, status). The planner node is only its adapter. Steps of the paper's Fig. 7:
 
 1. one ring is clamped (the reference); the other ring's clamp is released; the encoder lengths
-   and the forward kinematics give the robot configuration;
+   and the forward kinematics give the robot configuration (the leg-length Newton solve of
+   :func:`paramotion.gough_stewart.forward_kinematics` on the platform's 7 coordinates, which
+   gives the pose of the paper's 49-coordinate system, :mod:`climber_pkg.constraint_fk`);
 2. the moving ring's three ultrasonic distances give (dx, dy) by the correction function;
 3. the prediction function (6)-(8) gives the next planned pose of the moving ring, Delta further
    along its axis;
@@ -14,8 +16,15 @@ poses, status). The planner node is only its adapter. Steps of the paper's Fig. 
    within Delta of its stroke end (``L_max - max C <= Delta`` when extending, the mirror when
    retracting) or to a near-singular configuration (Jacobian condition above a threshold);
 6. the moving ring is clamped and, once its clamp is *confirmed* closed, the other ring is
-   released: it becomes the moving ring. Steps 1-6 repeat until the top (no echo above the
-   structure), ``n_cycles`` cycles, or a refusal.
+   released: it becomes the moving ring. Steps 1-6 repeat until the top (every echo of the
+   leading ring lost together above a structure the other ring still senses), ``n_cycles``
+   cycles, or a refusal. Losing the structure otherwise (echoes lost off-centre, or below
+   nothing sensed) is a fault of its own, state ``lost_structure``.
+
+Ablations (``GaitParams.without``): ``correction`` drops eq. (5)'s deviation, ``prediction``
+keeps the ring's orientation (eqs. (7)-(8) off) and steps it along its own axis; with both off
+the robot is blind. ``GaitParams.approach``: ``paper`` is eq. (7) verbatim, ``centres`` (ours,
+the default) aims along the secant of the sensed structure centres.
 
 Safety invariant (enforced in one place, :meth:`ClimbingGait._release`): a clamp is released
 only while the other clamp is confirmed closed; so at every instant at least one clamp holds.
@@ -43,6 +52,7 @@ from climber_pkg.prediction import (
     rotate_about_axis,
 )
 from paramotion import gough_stewart as gs
+from paramotion.errors import UserError
 
 RING1, RING2 = 0, 1
 RING_NAMES = ('ring1', 'ring2')
@@ -56,6 +66,23 @@ class State(enum.Enum):
     CLAMP = 'clamp'                # step 6: moving ring's clamp closing
     DONE = 'done'
     REFUSED = 'refused'
+    LOST = 'lost_structure'        # fault: the moving ring no longer senses the structure
+
+
+#: Constructs of the paper that ``GaitParams.without`` can switch off (ablations).
+CONSTRUCTS = ('correction', 'prediction')
+#: Approach vectors of the prediction: eq. (7) as printed, or the secant of measured centres.
+APPROACHES = ('paper', 'centres')
+
+
+def parse_without(value, name: str = 'without') -> tuple:
+    """Constructs to switch off, from 'a,b' or a list of names; UserError names a bad one."""
+    items = value.split(',') if isinstance(value, str) else list(value or ())
+    names = sorted({str(x).strip() for x in items if str(x).strip()})
+    for item in names:
+        if item not in CONSTRUCTS:
+            raise UserError(f'{name} {item}: unknown construct; known: {", ".join(CONSTRUCTS)}')
+    return tuple(names)
 
 
 @dataclass(frozen=True)
@@ -75,6 +102,9 @@ class GaitParams:
     max_relative_tilt: float = math.radians(25.0)  # ring-to-ring tilt limit, rad
     max_correction_tilt: float = math.radians(12.0)  # tilt a single correction may cause
     approach: str = 'centres'           # eq. (7) approach vector: 'centres' or 'paper'
+    without: tuple = ()                 # constructs switched off: 'correction', 'prediction'
+    edge_tolerance: float = 0.02        # partial echo loss counts as the top edge within this
+    max_edge_steps: int = 2             # blind steps allowed across the top edge
     secant_baseline: float = 0.09       # shortest centre-to-centre secant for 'centres', m
     min_clearance: float = 0.015        # refuse when a sensor sees the trunk closer, m
     bore_margin: float = 0.03           # trunk must be this much thinner than the bore, m
@@ -87,6 +117,11 @@ class GaitParams:
     move_timeout: float = 3.0           # extra time allowed beyond the planned move, s
     leg_speed: float = 0.10             # actuator speed used to time moves, m/s
 
+    def __post_init__(self):
+        if isinstance(self.without, str):
+            object.__setattr__(self, 'without', (self.without,) if self.without else ())
+        object.__setattr__(self, 'without', tuple(sorted(set(self.without))))
+
     def validate(self):
         """Raise ValueError naming the first inconsistent parameter."""
         checks = [
@@ -94,7 +129,8 @@ class GaitParams:
             ('delta_min', 0.0 < self.delta_min <= self.delta, '(0, delta]'),
             ('n_cycles', self.n_cycles >= 0, '>= 0'),
             ('mode', self.mode in ('climb', 'descend', 'turn'), 'climb|descend|turn'),
-            ('approach', self.approach in ('centres', 'paper'), 'centres|paper'),
+            ('approach', self.approach in APPROACHES, '|'.join(APPROACHES)),
+            ('without', all(w in CONSTRUCTS for w in self.without), '|'.join(CONSTRUCTS)),
             ('turn_step', 0.0 < self.turn_step <= math.radians(45), '(0, 45] deg'),
             ('max_condition', 1.0 < self.max_condition <= gs.DEFAULT_MAX_CONDITION,
              f'(1, {gs.DEFAULT_MAX_CONDITION}]'),
@@ -193,6 +229,8 @@ class ClimbingGait:
         self._planned_rel = None
         self._prev_direction = [None, None]
         self._last_radius = None
+        self._edge_steps = 0
+        self._last_deviation = [None, None]   # |(dx, dy)| of each ring's latest correction
         self._turn_left = 0.0
         self._pending = []
         self._pending_pose = None
@@ -218,7 +256,7 @@ class ClimbingGait:
     # ------------------------------------------------------------------ helpers
     @property
     def finished(self):
-        return self.state in (State.DONE, State.REFUSED)
+        return self.state in (State.DONE, State.REFUSED, State.LOST)
 
     @property
     def leading_ring(self):
@@ -273,8 +311,13 @@ class ClimbingGait:
         return _compose(ip, ir, p2, r2)
 
     def _fresh_triplet(self, ring, since, t):
-        """Latest valid reading per sensor newer than ``since``; or a reason why not."""
-        values, problems, no_echo = [], [], 0
+        """Latest valid reading per sensor newer than ``since``; or a reason why not.
+
+        Returns (values, problems, lost): the valid readings, a text per sensor without one,
+        and the indices of the sensors whose every reading since ``since`` is "no echo"
+        (+inf) for at least ``no_echo_time``.
+        """
+        values, problems, lost = [], [], []
         for k in range(3):
             recent = [(ts, v) for ts, v in self.ranges[ring][k] if ts >= since]
             valid = [v for _, v in recent
@@ -284,10 +327,68 @@ class ClimbingGait:
                 continue
             if recent and all(v == math.inf for _, v in recent) \
                     and recent[-1][0] - recent[0][0] >= self.p.no_echo_time:
-                no_echo += 1
+                lost.append(k)
             last = f'{recent[-1][1]!r}' if recent else 'no reading'
             problems.append(f'{RING_NAMES[ring]} ultrasonic {k}: {last}')
-        return values, problems, no_echo
+        return values, problems, lost
+
+    def _senses_structure(self, ring, t):
+        """True when every sensor of ``ring`` gave a valid echo within ``no_echo_time``."""
+        since = t - self.p.no_echo_time - 1e-9
+        return all(any(ts >= since and math.isfinite(v) and self.range_min <= v <= self.range_max
+                       for ts, v in self.ranges[ring][k]) for k in range(3))
+
+    def _echo_loss(self, t, ring, values, lost):
+        """Leading ring lost echoes: the end of the structure, the top edge, or a drift.
+
+        * all three echoes lost together, the leading ring centred (within ``edge_tolerance``)
+          at its previous measurement, and the clamped ring still sensing the structure below:
+          the end of the structure (done);
+        * some lost and the remaining ones read what a centred ring on the last measured radius
+          reads (within ``edge_tolerance``): the sensor plane crosses the top edge obliquely;
+          step once more along the ring's own axis (at most ``max_edge_steps`` times);
+        * anything else (all lost with nothing sensed below, or the remaining echoes off-centre,
+          or more edge steps needed): the robot has drifted off the structure (fault).
+        """
+        names = ', '.join(str(k) for k in lost)
+        other = 1 - ring
+        if len(lost) == 3:
+            last = self._last_deviation[ring]
+            if last is None or last > self.p.edge_tolerance:
+                seen = 'never measured' if last is None else f'{last * 1000:.0f} mm off-centre'
+                self._lose(f'no echo from the 3 ultrasonic sensors of the {RING_NAMES[ring]}, '
+                           f'which was {seen} at its previous measurement')
+            elif self._senses_structure(other, t):
+                self._end_semicycle(t, end_of_structure=(
+                    f'no echo from the 3 ultrasonic sensors of the leading {RING_NAMES[ring]} '
+                    f'above a structure the {RING_NAMES[other]} still senses: end of the '
+                    'structure reached'))
+            else:
+                self._lose(f'no echo from the 3 ultrasonic sensors of the {RING_NAMES[ring]} '
+                           f'and the {RING_NAMES[other]} does not sense the structure either')
+            return
+        if len(lost) + len(values) < 3:
+            return                        # other sensors not valid yet: keep waiting
+        expected = self.mount - (self._last_radius or 0.0)
+        off = max(abs(v - expected) for v in values)
+        if self._last_radius is None or off > self.p.edge_tolerance:
+            self._lose(f'{RING_NAMES[ring]} ultrasonic {names}: no echo while the others read '
+                       f'{off * 1000:.0f} mm off a centred ring (tolerance '
+                       f'{self.p.edge_tolerance * 1000:.0f} mm): drifted off the structure')
+            return
+        if self._edge_steps >= self.p.max_edge_steps:
+            self._lose(f'{RING_NAMES[ring]} ultrasonic {names}: no echo after '
+                       f'{self._edge_steps} steps across the top edge: drifted off the structure')
+            return
+        self._edge_steps += 1
+        if self._pose_from_encoders(*self._relative()) is not None:
+            self._plan_step(t, None)
+
+    def _lose(self, reason):
+        """Fault: the structure is lost. Stop safely exactly like a refusal, in its own state."""
+        self._refuse(f'lost the structure: {reason}')
+        self.state = State.LOST
+        self._pending[-1].state = self.state.value
 
     # ------------------------------------------------------------------ main entry
     def tick(self, t):
@@ -368,7 +469,7 @@ class ClimbingGait:
         if t < self._since:
             return
         ring = self.moving
-        values, problems, no_echo = self._fresh_triplet(ring, self._since, t)
+        values, problems, lost = self._fresh_triplet(ring, self._since, t)
         too_close = [k for k in range(3)
                      if any(v == -math.inf for ts, v in self.ranges[ring][k] if ts >= self._since)]
         if too_close:
@@ -376,11 +477,10 @@ class ClimbingGait:
                          'too close (-inf): ring about to touch it')
             return
         if problems:
-            if no_echo and ring == self.leading_ring and self.p.mode != 'turn':
-                self._end_semicycle(t, end_of_structure=(
-                    f'no echo from {no_echo} ultrasonic sensor(s) of the leading '
-                    f'{RING_NAMES[ring]}: end of the structure reached'))
-                return
+            if lost and ring == self.leading_ring and self.p.mode != 'turn':
+                self._echo_loss(t, ring, values, lost)
+                if self.state is not State.PLAN:
+                    return
             if t > self._deadline:
                 self._refuse('no valid ultrasonic data for '
                              f'{self.p.sensor_timeout} s: ' + '; '.join(problems))
@@ -400,6 +500,9 @@ class ClimbingGait:
                          f'closer than min_clearance={self.p.min_clearance} m')
             return
         self._last_radius = corr.radius
+        self._last_deviation[ring] = math.hypot(corr.dx, corr.dy)
+        if ring == self.leading_ring:
+            self._edge_steps = 0
         # The ring has settled since the move ended: refresh its pose from the encoders so
         # that the correction (measured now) and the pose it is applied to agree.
         if self._pose_from_encoders(*self._relative()) is None:
@@ -459,15 +562,8 @@ class ClimbingGait:
             delta = 0.0
         else:
             delta = self._step_delta(ring)
-            dx, dy = limit_correction(corr.dx, corr.dy, delta, self.p.max_correction_tilt)
-            prev_centre = None
-            if self.p.approach == 'centres':
-                prev_centre = self._previous_centre(ring, measured_centre(pos, rot, dx, dy),
-                                                    rot[:, 2], delta)
-            try:
-                new_p, new_r = predict_pose(pos, rot, dx, dy, delta, prev_centre)
-            except PredictionError as exc:
-                self._refuse(f'prediction failed: {exc}')
+            new_p, new_r = self._predict(pos, rot, corr, delta)
+            if new_p is None:
                 return
         old = self.pose[ring]
         self.pose[ring] = (new_p, new_r)
@@ -491,6 +587,29 @@ class ClimbingGait:
         self._emit(PlannedPose(ring, new_p, new_r))
         self.state = State.MOVE
         self._deadline = t + duration + self.p.move_timeout
+
+    def _predict(self, pos, rot, corr, delta):
+        """Steps 2-3: the moving ring's next pose from the correction (None: top-edge step).
+
+        ``without`` switches the paper's constructs off: 'correction' drops eq. (5)'s deviation
+        (and with it the measured centres the 'centres' approach aims along); 'prediction'
+        keeps the ring's orientation and steps it along its own axis, re-centred in its plane
+        by the correction (eqs. (7)-(8) off). Both off: a blind robot following its own axis.
+        """
+        off = self.p.without
+        dx, dy = (0.0, 0.0) if corr is None or 'correction' in off else (corr.dx, corr.dy)
+        dx, dy = limit_correction(dx, dy, delta, self.p.max_correction_tilt)
+        if 'prediction' in off or corr is None:
+            return pos + rot @ np.array([dx, dy, delta]), rot.copy()
+        prev_centre = None
+        if self.p.approach == 'centres' and 'correction' not in off:
+            prev_centre = self._previous_centre(self.moving, measured_centre(pos, rot, dx, dy),
+                                                rot[:, 2], delta)
+        try:
+            return predict_pose(pos, rot, dx, dy, delta, prev_centre)
+        except PredictionError as exc:
+            self._refuse(f'prediction failed: {exc}')
+            return None, None
 
     def _ik(self, rel_p, rel_r):
         lengths = gs.inverse_kinematics(self.geom, rel_p, rel_r)
@@ -557,8 +676,10 @@ class ClimbingGait:
         if fk is None:
             return
         new_p, new_r, corr, delta, cond = self._pending_pose
-        self.steps.append(StepRecord(self.cycle, self.semicycle, self.moving, corr.dx, corr.dy,
-                                     corr.radius, delta, fk.jacobian_condition,
+        dx, dy, radius = (corr.dx, corr.dy, corr.radius) if corr is not None else (
+            math.nan, math.nan, math.nan)
+        self.steps.append(StepRecord(self.cycle, self.semicycle, self.moving, dx, dy,
+                                     radius, delta, fk.jacobian_condition,
                                      self.pose[self.moving][0].copy()))
         self.steps_in_semicycle += 1
         if self.p.mode == 'turn':

@@ -15,8 +15,20 @@ from climber_pkg.gait import RING1, RING2, ClampCommand, LegCommand
 from paramotion import gough_stewart as gs
 
 
-def initial_pose_on_trunk(trunk, robot, s_start, lengths):
-    """World poses of ring 1 (centred on the axis at ``s_start``) and ring 2 from the lengths."""
+def start_direction(seed: int) -> tuple[float, float]:
+    """Angles (rad) of the start offset's direction and of the start tilt's axis, both in the
+    plane of ring 1, drawn from ``seed`` (the same seed gives the same start pose)."""
+    phi, psi = np.random.default_rng([int(seed), 29]).uniform(0.0, 2.0 * math.pi, 2)
+    return float(phi), float(psi)
+
+
+def initial_pose_on_trunk(trunk, robot, s_start, lengths, offset=0.0, tilt=0.0, seed=0):
+    """World poses of ring 1 (on the axis at ``s_start``) and ring 2 from the leg lengths.
+
+    With ``offset`` (m) the robot is shifted off the axis, in ring 1's plane, and with ``tilt``
+    (rad) it is turned about an axis in that plane through its mid-height (so both rings stay
+    within the bore); the directions of both come from :func:`start_direction` (``seed``).
+    """
     p1, r1 = trunk.frame_at(s_start)
     geom = robot.geometry
     chord = np.linalg.norm(geom.platform_anchors[0, :2] - geom.base_anchors[0, :2])
@@ -29,6 +41,15 @@ def initial_pose_on_trunk(trunk, robot, s_start, lengths):
     x = r1[:, 0] - (r1[:, 0] @ axis) * axis
     x /= np.linalg.norm(x)
     r1 = np.stack([x, np.cross(axis, x), axis], 1)
+    if offset or tilt:
+        phi, psi = start_direction(seed)
+        p1 = p1 + offset * (r1 @ np.array([math.cos(phi), math.sin(phi), 0.0]))
+        mid = p1 + 0.5 * (r1 @ fk.position)
+        turn_axis = r1 @ np.array([math.cos(psi), math.sin(psi), 0.0])
+        turn = gs.matrix_from_quaternion(np.concatenate([[math.cos(tilt / 2)],
+                                                         math.sin(tilt / 2) * turn_axis]))
+        p1 = mid + turn @ (p1 - mid)
+        r1 = turn @ r1
     return (p1, r1), (p1 + r1 @ fk.position, r1 @ fk.rotation)
 
 
@@ -36,14 +57,17 @@ class KinematicClimber:
     """World state of the robot: ring poses, clamps, leg lengths, sensor read-out."""
 
     def __init__(self, trunk, robot, s_start=0.4, lengths=None, clamp_delay=0.5,
-                 noise=0.0, dropout=0.0, seed=0):
+                 noise=0.0, dropout=0.0, seed=0, start_offset=0.0, start_tilt=0.0,
+                 cone=True):
         self.trunk = trunk
         self.robot = robot
         geom = robot.geometry
         if lengths is None:
             lengths = np.full(6, geom.leg_min + 0.25 * (geom.leg_max - geom.leg_min))
         self.lengths = np.asarray(lengths, dtype=float)
-        self.pose = list(initial_pose_on_trunk(trunk, robot, s_start, self.lengths))
+        self.pose = list(initial_pose_on_trunk(trunk, robot, s_start, self.lengths,
+                                               start_offset, start_tilt, seed))
+        self.cone = cone
         self.clamp = [True, True]
         self.clamp_delay = clamp_delay
         self._clamp_due = [None, None]     # (time, closed)
@@ -104,8 +128,9 @@ class KinematicClimber:
         key = (ring, p.tobytes(), r.tobytes())
         if self._ray_cache.get(ring, (None,))[0] != key:       # poses change only on moves
             origins, dirs = self.robot.sensor_rays()
-            self._ray_cache[ring] = (key, self.trunk.ray_distance(
-                p + origins @ r.T, dirs @ r.T, self.robot.sensor_max_range))
+            fov = self.robot.sensor_fov if self.cone else 0.0
+            self._ray_cache[ring] = (key, self.trunk.cone_distance(
+                p + origins @ r.T, dirs @ r.T, fov, self.robot.sensor_max_range))
         out = self._ray_cache[ring][1].copy()
         out = out + self.rng.normal(scale=self.noise, size=3) if self.noise else out
         out[out < self.robot.sensor_min_range] = -math.inf
@@ -114,11 +139,13 @@ class KinematicClimber:
         return out
 
 
-def run_gait(gait, model, dt=0.05, max_time=3000.0, sensor_period=0.05, on_tick=None):
-    """Close the loop between a ClimbingGait and a KinematicClimber until the gait finishes."""
+def run_gait(gait, model, dt=0.05, max_time=3000.0, sensor_period=0.05, on_tick=None,
+             until=None):
+    """Close the loop between a ClimbingGait and a KinematicClimber until the gait finishes
+    (or ``until()`` is true)."""
     t = 0.0
     next_sensor = 0.0
-    while t < max_time and not gait.finished:
+    while t < max_time and not gait.finished and not (until is not None and until()):
         model.advance(t)
         gait.update_encoders(t, model.lengths)
         for ring in (RING1, RING2):
@@ -135,3 +162,62 @@ def run_gait(gait, model, dt=0.05, max_time=3000.0, sensor_period=0.05, on_tick=
             on_tick(t, actions)
         t += dt
     return t
+
+
+def climb_kinematic(trunk, robot, gait_params, *, start_offset=0.0, start_tilt=0.0, seed=0,
+                    noise=0.001, dropout=0.0, cone=True, s_start=0.4, max_time=None,
+                    off_axis_limit=0.02) -> dict:
+    """One ROS-free closed-loop climb (gait + ideal kinematic robot), evaluated on the truth.
+
+    Returns the planner's outcome and, from the ground truth: the off-axis distance of the
+    moving ring each time the planner measures it (centre to where the axis crosses the ring
+    plane): at the first measurement (the start pose) and over every measurement from the
+    second cycle on (both rings have been re-centred by then); the smallest ring-bore clearance
+    over every pose; instants with no clamp closed; the arc length reached; and ``success``
+    (top reached, off-axis max <= ``off_axis_limit``, no contact, clamps never both open).
+    """
+    from climber_pkg import evaluation as ev
+    from climber_pkg.gait import ClimbingGait
+
+    gait = ClimbingGait(robot.geometry, robot.sensor_mount_radius, robot.sensor_angles,
+                        robot.sensor_min_range, robot.sensor_max_range, robot.ring_inner_radius,
+                        gait_params)
+    model = KinematicClimber(trunk, robot, s_start=s_start, noise=noise, dropout=dropout,
+                             seed=seed, start_offset=start_offset, start_tilt=start_tilt,
+                             cone=cone)
+    off_axis, start_off_axis, clearance = [], [], [min(ev.ring_clearance(trunk, robot, *pose)
+                                   for pose in model.pose)]
+    seen = [0]
+
+    def monitor(t, actions):
+        for _, ring in gait.measure_log[seen[0]:]:
+            pos, rot = model.pose[ring]
+            if ev.ring_on_structure(trunk, pos):
+                error = ev.centering_error(trunk, pos, rot)
+                (off_axis if gait.semicycle >= 2 else start_off_axis).append(error)
+        seen[0] = len(gait.measure_log)
+        if actions:
+            clearance.append(min(ev.ring_clearance(trunk, robot, *pose) for pose in model.pose))
+
+    run_gait(gait, model, max_time=max_time or 120.0 + 60.0 * trunk.length, on_tick=monitor)
+    s_top = float(trunk.closest(model.pose[RING2][0])[0])
+    reached_top = bool(gait.state.value == 'done' and 'end of the structure' in gait.reason
+                       and s_top >= trunk.length - gait_params.delta)
+    finite = [v for v in off_axis if math.isfinite(v)]
+    result = {
+        'state': gait.state.value, 'message': gait.reason, 'reached_top': reached_top,
+        'arc_length_reached_m': s_top, 'trunk_length_m': trunk.length,
+        'height_reached_m': float(model.pose[RING2][0][2]),
+        'steps': len(gait.steps), 'cycles': gait.cycle,
+        'off_axis_start_m': start_off_axis[0] if start_off_axis else math.nan,
+        'off_axis_per_step_m': start_off_axis + off_axis,
+        'off_axis_median_m': float(np.median(finite)) if finite else math.nan,
+        'off_axis_max_m': float(np.max(finite)) if finite else math.nan,
+        'min_ring_clearance_m': float(min(clearance)),
+        'clamp_violations': model.violations + model.moves_without_clamp,
+        'refusal': gait.reason if gait.state.value in ('refused', 'lost_structure') else None,
+    }
+    result['success'] = bool(reached_top and finite and result['off_axis_max_m'] <= off_axis_limit
+                             and result['min_ring_clearance_m'] > 0
+                             and result['clamp_violations'] == 0)
+    return result

@@ -47,12 +47,14 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from visualization_msgs.msg import Marker, MarkerArray
 
 from climber_pkg.gait import (
+    APPROACHES,
     ClampCommand,
     ClimbingGait,
     GaitParams,
     LegCommand,
     PlannedPose,
     StatusUpdate,
+    parse_without,
 )
 from climber_pkg.robot import load_robot_config
 from paramotion import gough_stewart as gs
@@ -94,9 +96,12 @@ class ClimberPlannerNode(LifecycleNodeMixin, ParamotionNode):
               max=100000, read_only=True),
         Param('turn_angle_deg', 0.0, 'Rotation around the structure for mode turn (deg).',
               min=-360.0, max=360.0, read_only=True),
-        Param('approach', 'centres', "Approach vector of eq. (7): 'centres' (secant of measured "
-              "structure centres) or 'paper' (eq. (7) verbatim).",
-              choices=('centres', 'paper'), read_only=True),
+        Param('approach', 'centres', "Approach vector of eq. (7): 'centres' (ours: secant of "
+              "measured structure centres) or 'paper' (eq. (7) verbatim).",
+              choices=APPROACHES, read_only=True),
+        Param('without', '', 'Comma-separated constructs switched off: correction (eq. (5)), '
+              'prediction (eqs. (6)-(8): step along the ring axis); empty: none.',
+              read_only=True),
         Param('max_condition', 30.0, 'Jacobian condition number ending a semicycle '
               '(near-singular configuration).', min=2.0, max=gs.DEFAULT_MAX_CONDITION,
               read_only=True),
@@ -204,7 +209,8 @@ class ClimberPlannerNode(LifecycleNodeMixin, ParamotionNode):
         params = GaitParams(
             delta=p.delta, delta_min=p.delta_min, adaptive_delta=p.adaptive_delta,
             n_cycles=p.n_cycles, mode=p.mode, turn_angle=math.radians(p.turn_angle_deg),
-            approach=p.approach, max_condition=p.max_condition, min_clearance=p.min_clearance,
+            approach=p.approach, without=parse_without(p.without, "parameter 'without'"),
+            max_condition=p.max_condition, min_clearance=p.min_clearance,
             leg_speed=p.leg_speed, length_tolerance=p.length_tolerance,
             sensor_timeout=p.sensor_timeout)
         self.gait = ClimbingGait(rb.geometry, rb.sensor_mount_radius, rb.sensor_angles,
@@ -236,6 +242,10 @@ class ClimberPlannerNode(LifecycleNodeMixin, ParamotionNode):
                     f"'delta' = {values['delta']}")
         if values['mode'] == 'turn' and values['turn_angle_deg'] == 0.0:
             return "parameter 'turn_angle_deg' must be non-zero in mode 'turn'"
+        try:
+            parse_without(values['without'], "parameter 'without'")
+        except UserError as exc:
+            return str(exc)
         return None
 
     def _now(self):

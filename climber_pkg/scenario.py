@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from climber_pkg import evaluation as ev
+from climber_pkg.gait import APPROACHES, CONSTRUCTS, parse_without
 from climber_pkg.robot import load_robot_config
 from climber_pkg.trunk import Trunk
 from paramotion import gough_stewart as gs
@@ -117,7 +118,7 @@ class ClimbMonitor:
 
 def _climb_launch_args(trunk_file, robot, robot_config, start_s, publish_period, physics_dt,
                        start_length, noise, dropout, fault, seed, delta, cycles, mode,
-                       turn_deg):
+                       turn_deg, approach, without, start_offset, start_tilt):
     """The arguments of ``climber.launch.xml`` for this run (start leg length: mid-stroke to
     turn, else the shortest legs + 5 cm)."""
     geom = robot.geometry
@@ -128,7 +129,8 @@ def _climb_launch_args(trunk_file, robot, robot_config, start_s, publish_period,
             0.5 * (geom.leg_min + geom.leg_max) if mode == 'turn' else geom.leg_min + 0.05)),
         'noise': float(noise), 'dropout': float(dropout), 'fault': float(fault),
         'seed': int(seed), 'delta': float(delta), 'cycles': int(cycles), 'mode': mode,
-        'turn_deg': float(turn_deg)}
+        'turn_deg': float(turn_deg), 'approach': approach, 'without': ','.join(without),
+        'start_offset': float(start_offset), 'start_tilt': float(start_tilt)}
 
 
 def _climb_result(trunk_file, trunk, robot, sim, gait, monitor, outcome, start_poses, delta,
@@ -141,11 +143,12 @@ def _climb_result(trunk_file, trunk, robot, sim, gait, monitor, outcome, start_p
     s_bottom = float(trunk.closest(poses[0][0])[0])
     reached_top = bool(gait.state.value == 'done' and 'end of the structure' in gait.reason
                        and s_top >= trunk.length - delta)
-    refused = gait.state.value == 'refused'
+    refused = gait.state.value in ('refused', 'lost_structure')
     result = {
         'trunk': str(trunk_file), 'trunk_name': trunk.name,
         'trunk_length_m': trunk.length, 'delta_m': delta, 'cycles_requested': cycles,
         'outcome': outcome, 'planner_state': gait.state.value,
+        'approach': gait.p.approach, 'without': list(gait.p.without),
         'planner_message': gait.reason,
         'refusal': gait.reason if refused else None,
         'cycles': gait.cycle, 'semicycles': gait.semicycle, 'steps': len(gait.steps),
@@ -181,10 +184,12 @@ def _climb_result(trunk_file, trunk, robot, sim, gait, monitor, outcome, start_p
 def run_climb(trunk_file, bag_dir=None, delta=0.10, cycles=0, max_time=None, noise=0.001,
               dropout=0.0, fault=0.0, start_s=0.4, seed=1, robot_config='', publish_period=0.02,
               sample_every=5, domain_id=None, physics_dt=0.002, mode='climb',
-              turn_deg=0.0, start_length=None):
+              turn_deg=0.0, start_length=None, approach='centres', without=(),
+              start_offset=0.0, start_tilt=0.0):
     """Run the climbing graph of ``climber.launch.xml`` in one process, lock-step, until the
     planner's gait is finished or ``max_time``; returns (result dict, trace dict for
-    plotting, trunk)."""
+    plotting, trunk). ``start_offset`` (m) and ``start_tilt`` (deg) start the robot off the
+    axis and tilted, in directions drawn from ``seed``."""
     from paramotion.graph import Graph
     from paramotion.launch import graph_from_launch
 
@@ -200,7 +205,8 @@ def run_climb(trunk_file, bag_dir=None, delta=0.10, cycles=0, max_time=None, noi
     with Graph(domain_id=domain_id) as graph:
         nodes, topics = graph_from_launch(graph, LAUNCH_FILE, _climb_launch_args(
             trunk_file, robot, robot_config, start_s, publish_period, physics_dt,
-            start_length, noise, dropout, fault, seed, delta, cycles, mode, turn_deg))
+            start_length, noise, dropout, fault, seed, delta, cycles, mode, turn_deg,
+            approach, parse_without(without, '--without'), start_offset, start_tilt))
         sim, planner = nodes['climber_sim'], nodes['climber_planner']
         if bag_dir is not None:
             graph.record(bag_dir, topics)
@@ -318,6 +324,13 @@ def _run(args):
                                     and abs(args.turn_deg) <= 360):
         raise UserError(f'--turn-deg {args.turn_deg}: need a non-zero angle within +-360 deg')
     _positive('--start-s', args.start_s, allow_zero=True)
+    _positive('--start-offset', args.start_offset, allow_zero=True)
+    if args.start_offset > 0.2:
+        raise UserError(f'--start-offset {args.start_offset}: at most 0.2 m')
+    _positive('--start-tilt', args.start_tilt, allow_zero=True)
+    if args.start_tilt > 30:
+        raise UserError(f'--start-tilt {args.start_tilt}: at most 30 deg')
+    without = parse_without(args.without or (), '--without')
     # Validate the structure before creating anything.
     check_trunk_fits(Trunk.from_file(args.trunk), load_robot_config(), args.trunk)
     with output_dir(args.out, args.overwrite) as tmp:
@@ -325,11 +338,16 @@ def _run(args):
                                          cycles=args.cycles, max_time=args.max_time,
                                          noise=args.noise, dropout=args.dropout,
                                          mode=args.mode, turn_deg=args.turn_deg,
-                                         start_s=args.start_s)
+                                         start_s=args.start_s, seed=args.seed,
+                                         approach=args.approach, without=without,
+                                         start_offset=args.start_offset,
+                                         start_tilt=args.start_tilt)
         write_json(tmp / 'result.json', result)
         plot_climb(tmp / 'climb.png', trunk, trace, result)
     r = result
-    print(f"climb {r['trunk_name']}: {r['planner_state']} ({r['planner_message']})")
+    print(f"climb {r['trunk_name']} (approach {r['approach']}, without "
+          f"{','.join(r['without']) or 'nothing'}): {r['planner_state']} "
+          f"({r['planner_message']})")
     print(f"  cycles {r['cycles']}, steps {r['steps']}, reached s = "
           f"{r['arc_length_reached_m']:.2f} of {r['trunk_length_m']:.2f} m "
           f"(height {r['height_reached_m']:.2f} m), top reached: {r['reached_top']}")
@@ -377,5 +395,20 @@ def register(subparsers):
                         help='rotation around the structure for --mode turn (deg)')
     parser.add_argument('--start-s', type=float, default=0.4,
                         help='arc length of ring 1 on the structure at start (m, default 0.4)')
+    parser.add_argument('--start-offset', type=float, default=0.0, metavar='METRES',
+                        help='start off the structure axis by this distance (direction drawn '
+                             'from --seed; default 0)')
+    parser.add_argument('--start-tilt', type=float, default=0.0, metavar='DEGREES',
+                        help='start tilted from the structure axis (axis drawn from --seed; '
+                             'default 0)')
+    parser.add_argument('--seed', type=int, default=1,
+                        help='seed of the ultrasonic noise and of the start offset/tilt '
+                             'directions (default 1)')
+    parser.add_argument('--approach', choices=APPROACHES, default='centres',
+                        help='approach vector of the prediction: centres (ours, default: secant '
+                             'of the sensed structure centres) or paper (eq. (7) verbatim)')
+    parser.add_argument('--without', action='append', choices=CONSTRUCTS, metavar='NAME',
+                        help='switch a construct of the paper off (repeatable): correction '
+                             '(eq. (5)), prediction (eqs. (6)-(8): step along the ring axis)')
     add_output_args(parser, default_out=os.path.join('bags', 'runs', f'climb-{stamp}'))
     parser.set_defaults(func=_run)

@@ -29,6 +29,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool
 from trajectory_msgs.msg import JointTrajectory
 
+from climber_pkg.evaluation import ring_clearance
 from climber_pkg.kinematic_model import initial_pose_on_trunk
 from climber_pkg.robot import load_robot_config
 from climber_pkg.trunk import Trunk
@@ -74,6 +75,14 @@ class ClimberSimNode(SimulationNode):
               read_only=True),
         Param('start_s', 0.4, 'Arc length of ring 1 centre on the structure at start (m).',
               min=0.0, max=100.0, read_only=True),
+        Param('start_offset', 0.0, 'Start off the structure axis by this distance, in ring 1 '
+              "'s plane (m); direction drawn from start_seed.", min=0.0, max=0.2,
+              read_only=True),
+        Param('start_tilt_deg', 0.0, 'Start tilted from the structure axis by this angle about '
+              'an axis through mid-height (deg); axis drawn from start_seed.', min=0.0,
+              max=30.0, read_only=True),
+        Param('start_seed', 1, 'Seed of the start offset direction and tilt axis.', min=0,
+              max=2 ** 31 - 1, read_only=True),
         Param('start_length', 0.5, 'Initial length of every leg (m).', min=0.1, max=10.0,
               read_only=True),
         Param('leg_force', 5000.0, 'Force limit of each actuator (N).', min=1.0, max=1e6),
@@ -102,7 +111,16 @@ class ClimberSimNode(SimulationNode):
         b.setPhysicsEngineParameter(numSolverIterations=p.solver_iterations)
         self._build_trunk()
         lengths = np.full(6, p.start_length)
-        (p1, r1), (p2, r2) = initial_pose_on_trunk(self.trunk, self.robot, p.start_s, lengths)
+        (p1, r1), (p2, r2) = initial_pose_on_trunk(
+            self.trunk, self.robot, p.start_s, lengths, p.start_offset,
+            math.radians(p.start_tilt_deg), p.start_seed)
+        for ring, (pos, rot) in enumerate(((p1, r1), (p2, r2))):
+            gap = ring_clearance(self.trunk, self.robot, pos, rot)
+            if not gap > 0.005:
+                raise ParameterError(
+                    f"{node_name}: parameters 'start_offset' = {p.start_offset} m and "
+                    f"'start_tilt_deg' = {p.start_tilt_deg} put ring {ring + 1}'s bore "
+                    f'{1000 * gap:.0f} mm from the structure (need > 5 mm)')
         self.rings = [self._make_ring(p1, r1), self._make_ring(p2, r2)]
         self.legs = [self._make_leg(i, (p1, r1), (p2, r2)) for i in range(6)]
         self._filter_collisions()

@@ -219,6 +219,50 @@ class Trunk:
         return out
 
 
+    def cone_distance(self, origins, directions, field_of_view, max_range,
+                      boundary_rays=24):
+        """Nearest echo within each sensor's cone (n, 3): +inf when none within max_range.
+
+        An ultrasonic sensor answers with the first echo of its beam, i.e. the nearest surface
+        point inside its cone (``field_of_view``: full apex angle, rad, as in
+        sensor_msgs/Range), not the point on its centre line. The nearest point of a locally
+        straight tube seen from outside lies on the perpendicular to the axis; when that
+        direction is inside the cone it is the answer, otherwise the nearest echo lies on the
+        cone's boundary, sampled by ``boundary_rays`` rays. ``field_of_view = 0`` is the thin
+        centre ray of :meth:`ray_distance`.
+        """
+        o = np.asarray(origins, dtype=float).reshape(-1, 3)
+        d = np.asarray(directions, dtype=float).reshape(-1, 3)
+        d = d / np.linalg.norm(d, axis=1, keepdims=True)
+        best = self.ray_distance(o, d, max_range)
+        if not field_of_view > 0:
+            return best
+        half = 0.5 * float(field_of_view)
+        helper = np.where(np.abs(d[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+        e1 = np.cross(d, helper)
+        e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+        e2 = np.cross(d, e1)
+        ang = np.linspace(0.0, 2 * np.pi, boundary_rays, endpoint=False)
+        rim = (math.cos(half) * d[:, None, :]
+               + math.sin(half) * (np.cos(ang)[None, :, None] * e1[:, None, :]
+                                   + np.sin(ang)[None, :, None] * e2[:, None, :]))
+        rim_d = self.ray_distance(np.repeat(o, boundary_rays, axis=0), rim.reshape(-1, 3),
+                                  max_range).reshape(len(o), boundary_rays)
+        best = np.minimum(best, rim_d.min(axis=1))
+        s, _ = self.closest(o)
+        w = o - self.point_at(s)
+        a = self.tangent_at(s)
+        wp = w - np.einsum('ij,ij->i', w, a)[:, None] * a
+        dist_axis = np.linalg.norm(wp, axis=1)
+        with np.errstate(invalid='ignore', divide='ignore'):
+            toward = -wp / dist_axis[:, None]
+            inside_cone = np.einsum('ij,ij->i', toward, d) >= math.cos(half)
+        near = dist_axis - self.radius_at(s)
+        ok = (inside_cone & (s > 0.0) & (s < self.length) & (near >= 0.0) & (near <= max_range)
+              & (dist_axis > 1e-9))
+        return np.where(ok, np.minimum(best, near), best)
+
+
 def _validate_centerline(centerline, source):
     if not isinstance(centerline, list) or len(centerline) < 2:
         raise UserError(f'{source}: centerline must be a list of at least two [x, y, z] points')

@@ -3,8 +3,10 @@
 A simulated sensor, so ground truth is its input: it reads the ring's true pose from
 ``/climber/ground_truth`` (geometry_msgs/PoseArray [ring 1, ring 2]) and casts the three beams
 (120 deg apart in the ring plane, pointing at the ring axis, positions from the robot parameter
-file) against the structure of ``trunk_file``. At ``rate`` Hz of sim time it publishes one
-Range per sensor on ``/climber/ring<N>/ultrasonic`` (frame ``ring<N>_us<k>``, k = 0, 1, 2):
+file) against the structure of ``trunk_file``: each sensor answers with the nearest echo inside
+its cone (``field_of_view`` of the robot file, :meth:`Trunk.cone_distance`). At ``rate`` Hz of
+sim time it publishes one Range per sensor on ``/climber/ring<N>/ultrasonic`` (frame
+``ring<N>_us<k>``, k = 0, 1, 2):
 Gaussian noise, ``+inf`` with no echo (past the top of the structure or beyond max range),
 ``-inf`` below min range, NaN with probability ``fault_probability``, and no message at all
 with probability ``dropout_probability``.
@@ -70,12 +72,13 @@ class ClimberUltrasonicNode(ParamotionNode):
                      gs.matrix_from_quaternion([q.w, q.x, q.y, q.z]))
 
     def true_distances(self):
-        """Noise-free distances of the three beams for the current ring pose (m or inf)."""
+        """Noise-free nearest echo in each sensor's cone for the current ring pose (m or inf)."""
         pos, rot = self.pose
         key = (pos.round(6).tobytes(), rot.round(7).tobytes())
         if self._cache[0] != key:
-            self._cache = (key, self.trunk.ray_distance(
-                pos + self.origins @ rot.T, self.dirs @ rot.T, self.robot.sensor_max_range))
+            self._cache = (key, self.trunk.cone_distance(
+                pos + self.origins @ rot.T, self.dirs @ rot.T, self.robot.sensor_fov,
+                self.robot.sensor_max_range))
         return self._cache[1]
 
     def _measure(self):

@@ -11,6 +11,10 @@ Climbing Parallel Robot" (IEEE T-RA 2003), section III:
   are the vectors ``r_ABi`` between the joint centres), leaving the six driving constraints
   phi^D (``(r_ABi . r_ABi - C_i^2) / 2 = 0``) and the Euler-parameter normalisation phi^P
   (``(e . e - 1) / 2 = 0``): a square 7 x 7 Newton system, warm-started from the last pose;
+  Naming note: this 7-unknown system is a leg-length Newton solve, a further reduction of the
+  paper's own reduced form (nb = 7 bodies: the platform and one body per actuator, 49
+  coordinates and constraints), which ``climber_pkg.constraint_fk.forward_kinematics_49``
+  implements; test/test_climber_fk.py checks that both give the same pose;
 * the rotation matrix from Euler parameters, ``A = (2 e0^2 - 1) I + 2 (e e^T + e0 e~)``
   (paper section IV-E step 3, Haug 1989);
 * the inverse Jacobian and its conditioning for singularity detection (paper step 5: "a singular

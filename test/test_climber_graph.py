@@ -26,6 +26,7 @@ def write_trunk(path, centerline, radius, name='t'):
     return path
 
 
+@pytest.mark.slow
 def test_graph_climbs_short_curved_trunk_to_the_top(tmp_path):
     z = np.linspace(0.0, 1.9, 7)
     centre = np.stack([0.1 * (z / 1.9) ** 2, -0.05 * np.sin(z), z], 1)
@@ -48,6 +49,7 @@ def test_graph_climbs_short_curved_trunk_to_the_top(tmp_path):
         assert info.topics[topic].count > 0
 
 
+@pytest.mark.slow
 def test_graph_refuses_safely_on_nan_sensors(tmp_path):
     trunk = write_trunk(tmp_path / 'straight.json', [[0, 0, 0], [0, 0, 3]], 0.2)
     result, _, _ = run_climb(trunk, None, fault=1.0, max_time=8)
@@ -56,6 +58,7 @@ def test_graph_refuses_safely_on_nan_sensors(tmp_path):
     assert result['clamp_invariant_ok'] and result['steps'] == 0
 
 
+@pytest.mark.slow
 def test_graph_turns_around_the_trunk(tmp_path):
     trunk = write_trunk(tmp_path / 'straight.json', [[0, 0, 0], [0, 0, 3]], 0.2)
     result, _, _ = run_climb(trunk, None, mode='turn', turn_deg=-30, max_time=30)
