@@ -38,6 +38,16 @@ EVENTS = ('cusp', 'critical', 'meet')
 TERMINAL = ('done', 'stuck', 'incomplete')
 
 
+def parse_without(value) -> tuple:
+    """Event kinds from a comma-separated string or a list; UserError names a bad one."""
+    items = value.split(',') if isinstance(value, str) else list(value or ())
+    out = tuple(sorted({w.strip() for w in items if w.strip()}))
+    bad = [w for w in out if w not in EVENTS]
+    if bad:
+        raise UserError(f'without "{bad[0]}" must be one of {", ".join(EVENTS)}')
+    return out
+
+
 @dataclass
 class PaperConfig:
     """Parameters of the paper planner (SI units)."""
@@ -70,9 +80,7 @@ class PaperConfig:
         if not self.delta > self.radius:
             raise UserError(f'delta {self.delta:g} m must be greater than the robot radius '
                             f'{self.radius:g} m')
-        bad = [w for w in self.without if w not in EVENTS]
-        if bad:
-            raise UserError(f'without "{bad[0]}" must be one of {", ".join(EVENTS)}')
+        parse_without(self.without)
         if sonar_max_range is not None and not sonar_max_range > self.delta:
             raise UserError(f'sonar max range {sonar_max_range:g} m must exceed delta '
                             f'{self.delta:g} m')

@@ -55,7 +55,7 @@ from scipy import ndimage
 
 from coverage_pkg import gvd as gvdmod
 from coverage_pkg import morse
-from coverage_pkg.algorithm1 import Command
+from coverage_pkg.algorithm1 import Command, PaperConfig, PaperPlanner
 from coverage_pkg.hierarchical_graph import HierarchicalGraph
 from coverage_pkg.mapping import T_FREE, T_OCC, EvidenceGrid, drop_speckles
 from coverage_pkg.sonar import sweep_evidence
@@ -1319,6 +1319,11 @@ class CoveragePlanner:
                 'last_event': list(self.events[-1]) if self.events else None}
 
 
+def graph_dict(planner) -> dict:
+    """The hierarchical decomposition graph of either planner as a JSON-friendly dict."""
+    return planner.to_dict() if isinstance(planner, PaperPlanner) else planner.graph.to_dict()
+
+
 class PlannerDriver:
     """Turns message streams into planner calls, identically live (node) and in replay (tests).
 
@@ -1330,6 +1335,7 @@ class PlannerDriver:
     """
 
     def __init__(self, config, beam_width):
+        """``config``: a PaperConfig (the paper planner) or a PlannerConfig (grid)."""
         self.cfg = config
         self.beam_width = float(beam_width)
         self.planner = None
@@ -1357,8 +1363,8 @@ class PlannerDriver:
             return None
         self.last_stamp = t
         if self.planner is None:
-            self.planner = CoveragePlanner(self.cfg, angles, self.beam_width, min_range,
-                                           max_range)
+            cls = PaperPlanner if isinstance(self.cfg, PaperConfig) else CoveragePlanner
+            self.planner = cls(self.cfg, angles, self.beam_width, min_range, max_range)
         self._apply_odometry(t)
         self.planner.on_sweep(t, ranges)
         return self.planner.update(t)

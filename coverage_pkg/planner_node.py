@@ -33,9 +33,10 @@ from sensor_msgs.msg import LaserScan
 from std_msgs.msg import ColorRGBA, String
 from visualization_msgs.msg import Marker, MarkerArray
 
+from coverage_pkg.algorithm1 import PaperConfig, PaperPlanner, parse_without
 from coverage_pkg.baseline import robot_size_config
 from coverage_pkg.morse import cell_boundaries
-from coverage_pkg.planner import PlannerConfig, PlannerDriver
+from coverage_pkg.planner import PlannerConfig, PlannerDriver, graph_dict
 from coverage_pkg.sonar import yaw_of
 from paramotion.errors import UserError
 from paramotion.node import Param, ParamotionNode, run_node
@@ -54,8 +55,14 @@ class CoveragePlannerNode(ParamotionNode):
               max=100.0, read_only=True),
         Param('radius', 0.25, 'Robot radius r (m).', min=0.01, max=10.0, read_only=True),
         Param('detector', 'extended', "'extended': hierarchical decomposition with range "
-              "delta; 'robot': robot-size detector, plain boustrophedon (Section II).",
-              choices=('extended', 'robot'), read_only=True),
+              "delta; 'robot': robot-size detector, plain boustrophedon (Section II, grid "
+              "planner only).", choices=('extended', 'robot'), read_only=True),
+        Param('planner', 'grid', "'paper': Algorithm 1 driven by sensed events alone "
+              "(coverage_pkg/algorithm1.py); 'grid': the frontier-driven evidence-grid "
+              "planner (ours, coverage_pkg/planner.py).", choices=('paper', 'grid'),
+              read_only=True),
+        Param('without', '', 'Comma-separated events whose sensing is switched off in the '
+              'paper planner: cusp, critical, meet (ablations).', read_only=True),
         Param('beam_width', 0.2, 'Cone angle of one transducer (rad); the same as the sonar '
               "ring's field_of_view (LaserScan does not carry it).", min=0.01, max=1.5,
               read_only=True),
@@ -101,8 +108,13 @@ class CoveragePlannerNode(ParamotionNode):
         super().__init__(node_name, **kwargs)
         p = self.params
         common = dict(max_speed=p.max_speed, spin_rate=p.spin_rate,
-                      replan_period=p.replan_period, sonar_timeout=p.sonar_timeout)
-        if p.detector == 'robot':
+                      sonar_timeout=p.sonar_timeout)
+        if p.planner == 'grid':
+            common['replan_period'] = p.replan_period
+        if p.planner == 'paper':
+            self.config = PaperConfig(
+                delta=p.delta, radius=p.radius, without=parse_without(p.without), **common)
+        elif p.detector == 'robot':
             self.config = robot_size_config(p.radius, **common)
         else:
             self.config = PlannerConfig(
@@ -128,6 +140,14 @@ class CoveragePlannerNode(ParamotionNode):
         self.update_times = []          # wall seconds per processed sweep (benchmark)
 
     def check_params(self, values):
+        try:
+            without = parse_without(values['without'])
+        except UserError as exc:
+            return f"parameter 'without': {exc}"
+        if without and values['planner'] != 'paper':
+            return "parameter 'without' applies to planner 'paper' only"
+        if values['planner'] == 'paper' and values['detector'] != 'extended':
+            return "parameter 'detector' = 'robot' needs planner 'grid'"
         if values['detector'] == 'extended' and not values['delta'] > values['radius']:
             return (f"parameter 'delta' = {values['delta']} must be greater than "
                     f"'radius' = {values['radius']}")
@@ -186,9 +206,10 @@ class CoveragePlannerNode(ParamotionNode):
             if cmd.state in ('done', 'stuck', 'incomplete', 'waiting_for_sonar'):
                 self.get_logger().info(f'coverage planner: {cmd.state}: '
                                        f'{event[4] if event else ""}')
-        if p.t_plan != self._last_plan:
-            self._last_plan = p.t_plan
-            self.graph_pub.publish(String(data=json.dumps(p.graph.to_dict())))
+        stamp = len(p.events) if isinstance(p, PaperPlanner) else p.t_plan
+        if stamp != self._last_plan:
+            self._last_plan = stamp
+            self.graph_pub.publish(String(data=json.dumps(graph_dict(p))))
             now = p.t_plan
             if now - self._last_markers >= self.params.marker_period or cmd.state == 'done':
                 self._last_markers = now
@@ -230,7 +251,9 @@ class CoveragePlannerNode(ParamotionNode):
             return m
 
         d = p.last if p is not None else {}
-        if d:
+        if isinstance(p, PaperPlanner):
+            paper_markers(p, marker)
+        elif d:
             k = max(1, int(round(self.params.marker_stride / p.grid.res)))
             for ns, key, color in (('vast_cells', 'vast', (0.6, 0.6, 0.6, 0.5)),
                                    ('narrow_cells', 'narrow', (0.7, 0.85, 1.0, 0.5))):
@@ -275,10 +298,31 @@ class CoveragePlannerNode(ParamotionNode):
                     '' if n.covered else '*')
         m = marker('path', Marker.LINE_STRIP, (0.0, 0.7, 0.0, 1.0), 0.05)
         m.points = [Point(x=x, y=y) for x, y in self.path]
-        if p is not None and p.path:
+        if p is not None and getattr(p, 'path', None):
             m = marker('plan', Marker.LINE_STRIP, (1.0, 0.5, 0.0, 1.0), 0.05)
             m.points = [Point(x=float(x), y=float(y), z=0.02) for x, y in p.path]
         return arr
+
+
+def paper_markers(p, marker):
+    """Markers of the paper planner's graph: sensed events and nodes (no decomposed map)."""
+    for kind, color, size in (('critical', (0.0, 0.0, 0.0, 1.0), 0.25),
+                              ('meet', (0.5, 0.5, 0.5, 1.0), 0.3),
+                              ('cusp', (1.0, 1.0, 1.0, 1.0), 0.3)):
+        m = marker(f'{kind}_points', Marker.SPHERE_LIST, color, size)
+        m.points = [Point(x=float(e[2]), y=float(e[3]), z=0.1) for e in p.events
+                    if e[1] == kind]
+    m = marker('graph_edges', Marker.LINE_LIST, (0.6, 0.0, 0.6, 1.0), 0.05)
+    for v, w, c in p.edges:
+        for a in (p.nodes[v].anchor, p.nodes[w].anchor):
+            m.points += [Point(x=float(a[0]), y=float(a[1]), z=0.2),
+                         Point(x=float(c[0]), y=float(c[1]), z=0.2)]
+    for i, n in enumerate(p.nodes):
+        t = marker('graph_nodes', Marker.TEXT_VIEW_FACING,
+                   (0.3, 0.3, 0.3, 1.0) if n.kind == 'vast' else (0.2, 0.4, 1.0, 1.0), 0.5,
+                   mid=i)
+        t.pose.position.x, t.pose.position.y, t.pose.position.z = n.anchor[0], n.anchor[1], 0.5
+        t.text = f"{'V' if n.kind == 'vast' else 'N'}{n.id}" + ('' if n.covered else '*')
 
 
 def main(args=None):

@@ -17,7 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from coverage_pkg.planner import PlannerConfig
+from coverage_pkg.algorithm1 import EVENTS, PaperConfig, parse_without
+from coverage_pkg.planner import PlannerConfig, graph_dict
 from coverage_pkg.sonar import SonarRing
 from coverage_pkg.world import load_world
 from paramotion.errors import UserError
@@ -32,10 +33,20 @@ from paramotion.scenario_io import add_output_args, output_dir, write_json
 # message of each burst: test/test_recording_loss.py).
 LAUNCH_FILE = 'coverage'
 TOPICS = recorded_topics(load_launch(LAUNCH_FILE, {'record': True}))
+PLANNERS = ('paper', 'grid')
+DEFAULT_PLANNER = 'grid'
 
 
-def validate_inputs(world_path, delta, radius, detector, sonar_max_range, max_sim_time=1.0):
+def validate_inputs(world_path, delta, radius, detector, sonar_max_range, max_sim_time=1.0,
+                    planner='grid', without=()):
     """Check every input before anything runs; raise UserError with one line if bad."""
+    if planner not in PLANNERS:
+        raise UserError(f'--planner {planner}: must be one of {", ".join(PLANNERS)}')
+    if without and planner != 'paper':
+        raise UserError('--without: applies to --planner paper only')
+    if planner == 'paper' and detector != 'extended':
+        raise UserError('--detector robot: needs --planner grid')
+    parse_without(without)
     for name, v in (('--delta', delta), ('--radius', radius), ('--sonar-max-range',
                                                                sonar_max_range),
                     ('--max-sim-time', max_sim_time)):
@@ -51,7 +62,8 @@ def validate_inputs(world_path, delta, radius, detector, sonar_max_range, max_si
 
 def run_coverage(world_path, delta=2.0, radius=0.25, detector='extended', bag_dir=None,
                  max_sim_time=3000.0, sonar_max_range=5.0, seed=1, sonar_params=None,
-                 planner_params=None, topics=None, domain_id=None):
+                 planner_params=None, topics=None, domain_id=None, planner=DEFAULT_PLANNER,
+                 without=()):
     """Run the coverage graph lock-step and return the result dict (see ``_run``).
 
     ``bag_dir`` records ``topics`` (default :data:`TOPICS`); extra node parameters go in
@@ -60,14 +72,18 @@ def run_coverage(world_path, delta=2.0, radius=0.25, detector='extended', bag_di
     from paramotion.graph import Graph
     from paramotion.launch import graph_from_launch
 
-    world = validate_inputs(world_path, delta, radius, detector, sonar_max_range, max_sim_time)
+    world = validate_inputs(world_path, delta, radius, detector, sonar_max_range, max_sim_time,
+                            planner, without)
+    planner_name = planner
     det_range = radius if detector == 'robot' else delta
     wall0 = time.monotonic()
     with Graph(domain_id=domain_id) as graph:
         nodes, launch_topics = graph_from_launch(
             graph, LAUNCH_FILE, {'world': str(world_path), 'radius': float(radius),
                                  'delta': float(delta), 'detector': detector,
-                                 'sonar_max_range': float(sonar_max_range), 'seed': int(seed)},
+                                 'sonar_max_range': float(sonar_max_range), 'seed': int(seed),
+                                 'planner': planner_name,
+                                 'without': ','.join(parse_without(without))},
             extra_params={'coverage_sonar': sonar_params, 'coverage_planner': planner_params})
         sim, planner, monitor = (nodes[n] for n in ('coverage_sim', 'coverage_planner',
                                                     'coverage_monitor'))
@@ -92,7 +108,7 @@ def run_coverage(world_path, delta=2.0, radius=0.25, detector='extended', bag_di
         length = float(np.sum(np.hypot(*np.diff(path, axis=0).T))) if len(path) > 1 else 0.0
         ut = np.asarray(planner.update_times) * 1e3
         sx, sy = map(float, world.start)
-        graph_dict = _shift_graph(p.graph.to_dict(), sx, sy) if p is not None else None
+        graph = _shift_graph(graph_dict(p), sx, sy) if p is not None else None
         lower = monitor.cvs.lower_bound_path()
         result = {
             'world': str(world_path), 'world_name': world.name, 'detector': detector,
@@ -110,7 +126,8 @@ def run_coverage(world_path, delta=2.0, radius=0.25, detector='extended', bag_di
             'planner_update_ms': {'median': float(np.median(ut)) if len(ut) else None,
                                   'p99': float(np.percentile(ut, 99)) if len(ut) else None,
                                   'sweeps': int(len(ut))},
-            'hierarchical_graph': graph_dict,
+            'planner': planner_name, 'without': list(parse_without(without)),
+            'hierarchical_graph': graph,
             'decisions': [list(d) for d in (p.decisions if p is not None else [])],
             # Every event (sensed: critical, cusp, meet; cell_closed, node_created, ...):
             # [sim time, kind, x, y (map), detail].
@@ -119,6 +136,10 @@ def run_coverage(world_path, delta=2.0, radius=0.25, detector='extended', bag_di
             'frames': 'path and graph in map; the planner works in odom (origin at start)',
             'path': np.round(path, 3).tolist(),
         }
+        if p is not None and hasattr(p, 'primitive_lengths'):
+            # Each path segment and the primitive that drove it (lap, boundary, gvd, transit).
+            result['path_segments'] = [[k, round(v, 3)] for k, v in p.segments]
+            result['primitive_lengths_m'] = p.primitive_lengths()
         layers = None
         if p is not None:
             from coverage_pkg.figure import planner_layers
@@ -142,6 +163,11 @@ def _shift_graph(g, dx, dy):
             n['label_point'] = sh(n['label_point'])
         n['critical_points'] = [sh(c) for c in n['critical_points']]
         n['meet_points'] = [sh(c) for c in n['meet_points']]
+    for n in g['nodes']:
+        for c in n.get('morse_cells', []):
+            c['laps'] = [[x + dx, lo + dy, hi + dy] for x, lo, hi in c['laps']]
+        for b in n.get('gvd_branches', []):
+            b['start'] = sh(b['start'])
     for e in g['edges']:
         e['cusp_points'] = [sh(c) for c in e['cusp_points']]
         e['sensed_cusp_points'] = [sh(c) for c in e.get('sensed_cusp_points', [])]
@@ -152,26 +178,30 @@ def _shift_graph(g, dx, dy):
 
 def _run(args):
     validate_inputs(args.world, args.delta, args.radius, args.detector, args.sonar_max_range,
-                    args.max_sim_time)
+                    args.max_sim_time, args.planner, args.without)
     with output_dir(args.out, args.overwrite) as tmp:
         topics = [t for t in (args.record_topics or '').split(',') if t] or None
         result = run_coverage(args.world, args.delta, args.radius, args.detector,
                               bag_dir=tmp / 'bag', max_sim_time=args.max_sim_time,
                               sonar_max_range=args.sonar_max_range, seed=args.seed,
-                              topics=topics, domain_id=args.domain_id)
+                              topics=topics, domain_id=args.domain_id, planner=args.planner,
+                              without=args.without)
         layers = result.pop('_layers')
         uncovered = result.pop('_uncovered')
         write_json(tmp / 'result.json', result)
         from coverage_pkg.figure import render_coverage
         world = load_world(args.world)
-        title = (f"{world.name}: {args.detector} detector (range {result['detector_range_m']:g}"
+        title = (f"{world.name}: {args.planner} planner, {args.detector} detector "
+                 f"(range {result['detector_range_m']:g}"
                  f" m), path {result['path_length_m']:.1f} m (lower bound "
                  f"{result['lower_bound_path_m']:.1f} m), covered "
                  f"{100 * result['covered_fraction_of_cvs']:.2f}% of CVS, "
                  f"{result['outcome']}")
         render_coverage(tmp / 'coverage.png', world, result['path'],
                         result['hierarchical_graph'], layers, uncovered, title)
-    print(f"coverage {result['world_name']} ({args.detector} detector): {result['outcome']} "
+    print(f"coverage {result['world_name']} ({args.planner} planner, {args.detector} detector"
+          + (f", without {','.join(args.without)}" if args.without else '')
+          + f"): {result['outcome']} "
           f"after {result['sim_time_s']:.1f} s sim time in {result['wall_time_s']:.1f} s wall")
     print(f"covered {100 * result['covered_fraction_of_cvs']:.2f}% of CVS "
           f"({result['cvs_area_m2']:.1f} m^2); path {result['path_length_m']:.1f} m, lower "
@@ -184,11 +214,12 @@ def _run(args):
 
 def _bench(args):
     validate_inputs(args.world, args.delta, args.radius, args.detector, args.sonar_max_range,
-                    args.max_sim_time)
+                    args.max_sim_time, args.planner, args.without)
     result = run_coverage(args.world, args.delta, args.radius, args.detector, bag_dir=None,
                           max_sim_time=args.max_sim_time,
                           sonar_max_range=args.sonar_max_range, seed=args.seed,
-                          domain_id=args.domain_id)
+                          domain_id=args.domain_id, planner=args.planner,
+                          without=args.without)
     u = result['planner_update_ms']
     print(f"coverage benchmark {result['world_name']} ({args.detector} detector), "
           f"{result['outcome']}")
@@ -213,9 +244,21 @@ def _common(parser):
     parser.add_argument('--max-sim-time', type=float, default=4000.0,
                         help='sim-time limit (s)')
     parser.add_argument('--seed', type=int, default=1, help='sonar noise seed')
+    add_planner_args(parser)
     parser.add_argument('--domain-id', type=int, default=None,
                         help='DDS domain of the run (default: $ROS_DOMAIN_ID, else a random '
                         'one in 101..232 so concurrent runs stay apart)')
+
+
+def add_planner_args(parser):
+    """``--planner`` and the repeatable ``--without EVENT`` (paper planner ablations)."""
+    parser.add_argument('--planner', choices=PLANNERS, default=DEFAULT_PLANNER,
+                        help='paper: Algorithm 1 driven by sensed events alone '
+                        '(coverage_pkg/algorithm1.py); grid: the frontier-driven evidence-grid '
+                        f'planner (ours). Default: {DEFAULT_PLANNER}')
+    parser.add_argument('--without', action='append', choices=EVENTS, default=[],
+                        help='switch the sensing of this event off in the paper planner '
+                        '(repeatable)')
 
 
 def register(subparsers):
@@ -264,6 +307,7 @@ def register(subparsers):
                        help='also check every sensed cusp and meet point against the true '
                        'world (coverage_pkg/event_check.py, fine ray casting; evaluation only)')
     ratio.add_argument('--max-sim-time', type=float, default=3000.0, help='per world (s)')
+    add_planner_args(ratio)
     ratio.set_defaults(func=_ratio)
 
 
@@ -272,8 +316,11 @@ def _ratio(args):
     paths = sorted(Path(args.worlds).glob('*.json'))
     if not paths:
         raise UserError(f'--worlds {args.worlds}: no .json world files there')
-    ratio_report(paths, baseline=args.baseline, oracle=args.oracle, max_time=args.max_sim_time,
-                 events=args.events)
+    validate_inputs(paths[0], 2.0, 0.25, 'extended', 5.0, 1.0, args.planner, args.without)
+    config = PaperConfig(without=parse_without(args.without)) if args.planner == 'paper' \
+        else None
+    ratio_report(paths, config, baseline=args.baseline, oracle=args.oracle,
+                 max_time=args.max_sim_time, events=args.events)
     return 0
 
 

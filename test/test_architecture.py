@@ -13,7 +13,7 @@ ALGORITHMS = [
     'voronoi_pkg.spatial321_roadmap',
     'coverage_pkg.world', 'coverage_pkg.sonar', 'coverage_pkg.mapping', 'coverage_pkg.gvd',
     'coverage_pkg.morse', 'coverage_pkg.hierarchical_graph', 'coverage_pkg.planner',
-    'coverage_pkg.cvs', 'coverage_pkg.baseline',
+    'coverage_pkg.cvs', 'coverage_pkg.baseline', 'coverage_pkg.algorithm1',
     'climber_pkg.trunk', 'climber_pkg.correction', 'climber_pkg.prediction', 'climber_pkg.gait',
     'cable_robot_pkg.fast.configuration', 'cable_robot_pkg.fast.cables',
     'cable_robot_pkg.fast.wind',

@@ -68,6 +68,8 @@ def test_full_graph_covers_a_small_world_and_terminates(tmp_path):
     ({'boundary': [[0, 0], [4, 0], [4, 4], [0, 4]], 'start': [9, 9]}, [], 'outside'),
     (SMALL, ['--delta', '0.2'], 'must be greater than --radius'),
     (SMALL, ['--sonar-max-range', '1.5'], 'must exceed the detector range delta'),
+    (SMALL, ['--planner', 'grid', '--without', 'cusp'], 'applies to --planner paper only'),
+    (SMALL, ['--planner', 'paper', '--detector', 'robot'], 'needs --planner grid'),
 ])
 def test_bad_input_gives_one_line_error_and_no_output(tmp_path, capsys, world, extra, words):
     out = tmp_path / 'out'
@@ -142,6 +144,18 @@ def test_planner_node_refuses_delta_not_above_radius():
     with Graph() as graph:
         with pytest.raises(ParameterError, match="'delta' = 0.2 must be greater than"):
             graph.add(CoveragePlannerNode, delta=0.2, radius=0.25)
+
+
+@pytest.mark.parametrize('params, words', [
+    ({'planner': 'paper', 'without': 'cusp,meets'}, 'without "meets" must be one of'),
+    ({'planner': 'grid', 'without': 'cusp'}, "'without' applies to planner 'paper' only"),
+])
+def test_planner_node_refuses_a_bad_ablation(params, words):
+    from coverage_pkg.planner_node import CoveragePlannerNode
+    from paramotion.graph import Graph
+    with Graph() as graph:
+        with pytest.raises(ParameterError, match=words):
+            graph.add(CoveragePlannerNode, **params)
 
 
 def _replay(bag, config, beam_width):
