@@ -1,43 +1,46 @@
-"""Simplified Voronoi diagram of the distance measure rho (section 5 of Vaca, Aranda & Thomas;
-Canny & Donald 1988), per orientation slice and connected across orientation.
+"""The simplified Voronoi diagram of the planar platform, per orientation slice and connected
+across orientation (section 5 of Vaca, Aranda & Thomas; Canny & Donald 1988).
 
-rho is a min/max tree of signed determinants (:mod:`voronoi_pkg.distance`). Each
-configuration has one *active* leaf - the determinant that currently decides rho. The
-simplified Voronoi diagram is the set where two or more leaves tie, i.e. where the active
-leaf changes. For a fixed orientation phi of the planar platform every determinant is affine
-in (x, y), so each slice of the diagram is an arrangement of straight segments (the paper's
-"straight skeleton" remark).
+The diagram is the one defined in :mod:`voronoi_pkg.ties` (shared with the 3-2-1 planner):
+free configurations where the two smallest *contacts* (children of rho's root min node)
+decided by different determinants tie. For a fixed orientation phi every determinant is affine
+in (x, y), so each contact is piecewise affine and each slice of the diagram is an arrangement
+of straight pieces (the paper's "straight skeleton" remark).
 
 Construction used by the planner (:mod:`voronoi_pkg.planner`):
 
 * :func:`affine_coefficients`: the exact affine form ``A + B x + C y`` of every determinant in
   a slice (all moving points are P3 plus a constant), so grid fields (:func:`slice_fields`)
   and tie points need no per-point geometry;
+* :func:`slice_fields`: rho, the smallest contact, the determinant deciding it and the
+  singularity cell on an (phi, y, x) grid;
 * :func:`diagram_slices`: per slice, a graph whose nodes are the exact tie points
-  ``L_a = L_b`` on grid edges whose end vertices (free, same singularity cell) have different
-  active leaves, and whose edges are the straight pieces joining the tie points of one grid
-  cell (a junction node where three or more meet);
+  ``f_A = f_B`` on grid edges whose end vertices (free, same singularity cell) have different
+  smallest contacts A and B decided by different determinants (regula falsi on the piecewise
+  affine ``f_A - f_B``), kept when they lie on the diagram (:func:`voronoi_pkg.ties.on_diagram`),
+  and whose edges are the straight pieces joining the tie points of one grid cell; where
+  three or more pieces meet in a cell, the node is the exact vertex ``f_A = f_B = f_C`` (the
+  three affine leaves solved), and where that vertex is not on the diagram inside the cell,
+  pieces of one contact pair are joined directly and the others end;
 * :func:`link_slices`: links between diagram vertices of consecutive slices (nearest of the
-  same leaf pair, two nearest of any pair, within a radius).
+  same contact pair, two nearest of any pair, within a radius).
 
 No roadmap edge comes from a free grid edge: the planner searches these pieces and links only.
-:func:`tie_segments` extracts the same straight pieces of one slice for figures and markers.
+:func:`tie_segments` draws the same pieces of one slice for figures and markers.
 """
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-__all__ = ['DiagramSlice', 'SliceFields', 'affine_coefficients', 'diagram_mask',
-           'diagram_slices', 'grid_axes', 'leaf_evaluator', 'link_slices', 'slice_fields',
-           'tie_segments']
+from voronoi_pkg.ties import on_diagram, tie_tolerance, two_smallest
 
-# In-slice neighbour offsets (dy, dx) covering the 8-neighbourhood once per unordered pair.
-_HALF8 = ((0, 1), (1, 0), (1, 1), (1, -1))
-_ALL8 = ((0, 1), (1, 0), (1, 1), (1, -1), (0, -1), (-1, 0), (-1, -1), (-1, 1))
+__all__ = ['DiagramSlice', 'SliceFields', 'affine_coefficients', 'contact_evaluator',
+           'diagram_mask', 'diagram_slices', 'grid_axes', 'link_slices', 'shifted_pairs',
+           'slice_fields', 'tie_segments']
 
 
-def grid_axes(domain, h):
+def grid_axes(domain, h: float) -> tuple:
     """Grid coordinates covering the domain's x and y ranges with spacing about ``h``."""
     nx = max(2, int(round((domain.x[1] - domain.x[0]) / h)) + 1)
     ny = max(2, int(round((domain.y[1] - domain.y[0]) / h)) + 1)
@@ -46,13 +49,15 @@ def grid_axes(domain, h):
 
 @dataclass
 class SliceFields:
-    """rho, active leaf and singularity-cell code on a (phi, y, x) grid."""
+    """rho, smallest contact, its deciding determinant and singularity cell on a (phi, y, x)
+    grid."""
 
     phis: np.ndarray
     xs: np.ndarray
     ys: np.ndarray
     rho: np.ndarray      # (nphi, ny, nx)
-    active: np.ndarray   # (nphi, ny, nx) int32 leaf ids
+    contact: np.ndarray  # (nphi, ny, nx) int32 index of the smallest contact
+    code: np.ndarray     # (nphi, ny, nx) int32 code of the determinant deciding it
     cell: np.ndarray     # (nphi, ny, nx) int64 code of the pure-condition sign vector
     tol: float = 0.0     # rho <= tol counts as forbidden (numerically on an obstacle)
 
@@ -66,8 +71,8 @@ def _configs(phis, xs, ys):
     return np.stack([X, Y, P], axis=-1)
 
 
-def slice_fields(model, phis, xs, ys, program='total'):
-    """Evaluate rho, the active leaf and the singularity cell on the grid (vectorised).
+def slice_fields(model, phis, xs, ys, program: str = 'total') -> SliceFields:
+    """Evaluate rho, the smallest contact and the singularity cell on the grid (vectorised).
 
     Each determinant is affine in (x, y) within a slice (:func:`affine_coefficients`), so
     the grid values are ``A + B x + C y`` by broadcasting: no point coordinates per vertex.
@@ -76,39 +81,45 @@ def slice_fields(model, phis, xs, ys, program='total'):
     prog = model.programs[program]
     if any(k not in prog.keys for k in model.singular_keys):
         q = _configs(phis, xs, ys)
-        rho, active, cell = model.fields(q, program)
-        return SliceFields(phis, xs, ys, rho, active, cell, model.free_tol)
+        rho, contact, code, cell = model.fields(q, program)
+        return SliceFields(phis, xs, ys, rho, contact, code, cell, model.free_tol)
     A, B, C = affine_coefficients(model, phis, program)
     rows = [prog.keys.index(k) for k in model.singular_keys]
     shape = (len(phis), len(ys), len(xs))
     rho = np.empty(shape)
-    active = np.empty(shape, dtype=np.int32)
+    contact = np.empty(shape, dtype=np.int32)
+    code = np.empty(shape, dtype=np.int32)
     cell = np.zeros(shape, dtype=np.int64)
-    step = max(1, (1 << 18) // (len(xs) * len(ys)))
+    step = max(1, (1 << 17) // (len(xs) * len(ys)))
     for k0 in range(0, len(phis), step):
         sl = slice(k0, k0 + step)
         dets = (A[sl].T[:, :, None, None] + B[sl].T[:, :, None, None] * xs[None, None, None, :]
                 + C[sl].T[:, :, None, None] * ys[None, None, :, None])
-        rho[sl], active[sl] = prog.evaluate(dets)
+        vals, codes = prog.contact_values(dets)
+        i1 = np.argmin(vals, axis=0)
+        contact[sl] = i1
+        rho[sl] = np.take_along_axis(vals, i1[None], axis=0)[0]
+        code[sl] = np.take_along_axis(codes, i1[None], axis=0)[0]
         for i, r in enumerate(rows):
             cell[sl] += (np.sign(dets[r]).astype(np.int64) + 1) * 3 ** i
-    return SliceFields(phis, xs, ys, rho, active, cell, model.free_tol)
+    return SliceFields(phis, xs, ys, rho, contact, code, cell, model.free_tol)
 
 
-def leaf_evaluator(model, phi, program='total'):
-    """``f(xy (n, 2)) -> (rho, active)`` in the slice ``phi``, from the affine forms."""
+def contact_evaluator(model, phi: float, program: str = 'total'):
+    """``f(xy (n, 2)) -> (values, codes)`` of the contacts in the slice ``phi``, from the
+    affine forms, and the forms ``(A, B, C)`` (each ``(n_keys,)``)."""
     prog = model.programs[program]
     A, B, C = affine_coefficients(model, [phi], program)
 
     def evaluate(xy):
         xy = np.atleast_2d(xy)
         dets = A[0][:, None] + B[0][:, None] * xy[None, :, 0] + C[0][:, None] * xy[None, :, 1]
-        return prog.evaluate(dets)
+        return prog.contact_values(dets)
 
     return evaluate, (A[0], B[0], C[0])
 
 
-def _shifted_pairs(shape, dy, dx):
+def shifted_pairs(shape, dy, dx):
     """Slices (a, b) of a (..., ny, nx) array such that b is a shifted by (dy, dx)."""
     ny, nx = shape[-2], shape[-1]
     ya = slice(max(0, -dy), ny - max(0, dy))
@@ -118,15 +129,15 @@ def _shifted_pairs(shape, dy, dx):
     return (Ellipsis, ya, xa), (Ellipsis, yb, xb)
 
 
-def diagram_mask(rho, active, cell=None, tol=0.0):
-    """Free vertices (rho > tol) where the active leaf differs from that of a free
-    4-neighbour. Works on ``(..., ny, nx)`` arrays; neighbours within the last two axes.
-    """
+def diagram_mask(rho, contact, code, cell=None, tol=0.0):
+    """Free vertices (rho > tol) whose smallest contact differs, decided by another
+    determinant, from that of a free 4-neighbour in the same singularity cell: the grid
+    vertices next to the diagram. Works on ``(..., ny, nx)`` arrays."""
     free = rho > tol
     mask = np.zeros(rho.shape, dtype=bool)
     for dy, dx in ((0, 1), (1, 0)):
-        a, b = _shifted_pairs(rho.shape, dy, dx)
-        change = free[a] & free[b] & (active[a] != active[b])
+        a, b = shifted_pairs(rho.shape, dy, dx)
+        change = free[a] & free[b] & (contact[a] != contact[b]) & (code[a] != code[b])
         if cell is not None:
             change &= cell[a] == cell[b]
         mask[a] |= change
@@ -134,62 +145,14 @@ def diagram_mask(rho, active, cell=None, tol=0.0):
     return mask
 
 
-def tie_segments(model, phi, xs, ys, program='total', free_only=True):
-    """Straight pieces of the diagram in one slice, as an array ``(m, 2, 2)`` of xy segments.
-
-    On every grid edge whose end vertices have different active leaves a and b, the tie point
-    solves ``L_a = L_b`` exactly (both leaves are affine along the edge). Tie points in the same
-    cell are joined (two points: a segment; more: a star through their mean, a junction).
-    """
-    prog = model.programs[program]
-    X, Y = np.meshgrid(xs, ys)
-    q = np.stack([X, Y, np.full_like(X, phi)], axis=-1)
-    dets = model.determinants(q, prog)
-    rho, active = prog.evaluate(dets)
-    key_of = np.array([k for k, _ in prog.leaves])
-    sign_of = np.array([s for _, s in prog.leaves], dtype=float)
-    ny, nx = rho.shape
-
-    def leaf_value(leaf, iy, ix):
-        return sign_of[leaf] * dets[key_of[leaf], iy, ix]
-
-    points = {}   # (cell iy, cell ix) -> list of tie points
-    for dy, dx in ((0, 1), (1, 0)):
-        a, b = _shifted_pairs(rho.shape, dy, dx)
-        iy, ix = np.nonzero(active[a] != active[b])
-        iy_b, ix_b = iy + dy, ix + dx
-        la, lb = active[iy, ix], active[iy_b, ix_b]
-        du = leaf_value(la, iy, ix) - leaf_value(lb, iy, ix)
-        dv = leaf_value(la, iy_b, ix_b) - leaf_value(lb, iy_b, ix_b)
-        denom = du - dv
-        t = np.clip(np.divide(du, denom, out=np.full_like(du, 0.5), where=denom != 0), 0, 1)
-        px = xs[ix] + t * (xs[ix_b] - xs[ix])
-        py = ys[iy] + t * (ys[iy_b] - ys[iy])
-        keep = np.ones(len(t), dtype=bool)
-        if free_only:
-            # The tie must be free: a change between D and -D is the zero set of D (an
-            # obstacle such as a singularity), not part of the diagram.
-            va = leaf_value(la, iy, ix)
-            value = va + t * (leaf_value(la, iy_b, ix_b) - va)
-            keep = value > 1e-9 * (np.abs(rho[iy, ix]) + np.abs(rho[iy_b, ix_b]))
-        for k in np.nonzero(keep)[0]:
-            # The edge borders one or two cells: (iy, ix) cell and the one before it.
-            cells = [(iy[k], ix[k])]
-            if dy == 0:
-                cells.append((iy[k] - 1, ix[k]))
-            else:
-                cells.append((iy[k], ix[k] - 1))
-            for c in cells:
-                if 0 <= c[0] < ny - 1 and 0 <= c[1] < nx - 1:
-                    points.setdefault(c, []).append((px[k], py[k]))
-    segs = []
-    for pts in points.values():
-        if len(pts) == 2:
-            segs.append(pts)
-        elif len(pts) > 2:
-            centre = tuple(np.mean(pts, axis=0))
-            segs.extend([p, centre] for p in pts)
-    return np.asarray(segs, dtype=float).reshape(-1, 2, 2)
+def tie_segments(model, phi: float, xs, ys, program: str = 'total') -> np.ndarray:
+    """Straight pieces of the diagram in one slice, ``(m, 2, 2)`` xy segments: the edges of
+    :func:`diagram_slices` for that slice (the same pieces the planner searches)."""
+    fields = slice_fields(model, np.array([phi]), xs, ys, program)
+    sl = diagram_slices(model, fields, program)[0]
+    if not len(sl.edges):
+        return np.zeros((0, 2, 2))
+    return sl.xyz[sl.edges][:, :, :2]
 
 
 def affine_coefficients(model, phis, program='total'):
@@ -213,8 +176,8 @@ def affine_coefficients(model, phis, program='total'):
 class DiagramSlice:
     """The simplified Voronoi diagram of one orientation slice as a graph of exact tie points.
 
-    ``xyz``: node configurations (x, y, phi); ``pair``: code ``la * n_leaves + lb`` (la < lb)
-    of the two leaves that tie there (-1 for junction nodes); ``rho``: rho at the node;
+    ``xyz``: node configurations (x, y, phi); ``pair``: code ``a * n_contacts + b`` (a < b)
+    of the two contacts that tie there (-1 for junction nodes); ``rho``: rho at the node;
     ``edges``: ``(m, 2)`` local node ids of the straight diagram pieces joining them.
     """
 
@@ -234,97 +197,256 @@ class DiagramSlice:
         return self._tree
 
     def pair_tree(self, scale):
-        """k-d tree over (x, y, scale * pair): nearest queries stay within one leaf pair."""
+        """k-d tree over (x, y, scale * pair): nearest queries stay within one contact
+        pair."""
         if self._pair_tree is None or self._pair_tree[0] != scale:
             self._pair_tree = (scale, cKDTree(np.c_[self.xyz[:, :2], scale * self.pair]))
         return self._pair_tree[1]
 
 
-def diagram_slices(model, fields, program='total'):
+def _contacts_at(prog, A, B, C, k, x, y):
+    """Contact values and codes at points ``(x, y)`` of slices ``k`` from the affine forms."""
+    dets = A[k].T + B[k].T * x + C[k].T * y
+    return prog.contact_values(dets)
+
+
+def _tie_parameter(prog, A, B, C, k, xu, yu, xv, yv, ca, cb, iterations=40):
+    """Parameter t in [0, 1] of the point of the segment u -> v where contacts ``ca`` and
+    ``cb`` are equal (``f_ca <= f_cb`` at u, ``>=`` at v): regula falsi with the Illinois
+    modification on ``g = f_ca - f_cb``, which is piecewise affine, so it ends exactly after
+    a few steps (one when no contact changes its deciding determinant along the edge)."""
+    cols = np.arange(len(k))
+
+    def g(t, sel):
+        vals, _ = _contacts_at(prog, A, B, C, k[sel], xu[sel] + t * (xv[sel] - xu[sel]),
+                               yu[sel] + t * (yv[sel] - yu[sel]))
+        c = np.arange(len(sel))
+        return vals[ca[sel], c] - vals[cb[sel], c]
+
+    lo, hi = np.zeros(len(k)), np.ones(len(k))
+    glo, ghi = np.minimum(g(lo, cols), 0.0), np.maximum(g(hi, cols), 0.0)
+    eps = 1e-13 * (np.abs(glo) + np.abs(ghi)) + 1e-300
+    t = np.where(ghi - glo > 0, -glo / np.maximum(ghi - glo, 1e-300), 0.5)
+    last = np.zeros(len(k), dtype=np.int8)      # side replaced last: -1 lo, +1 hi
+    todo = cols
+    for _ in range(iterations):
+        if not todo.size:
+            break
+        gt = g(t[todo], todo)
+        done = np.abs(gt) <= eps[todo]
+        left = gt < 0
+        i = todo[left & ~done]
+        lo[i], glo[i] = t[i], gt[left & ~done]
+        ghi[i] = np.where(last[i] == -1, 0.5 * ghi[i], ghi[i])
+        last[i] = -1
+        i = todo[~left & ~done]
+        hi[i], ghi[i] = t[i], gt[~left & ~done]
+        glo[i] = np.where(last[i] == 1, 0.5 * glo[i], glo[i])
+        last[i] = 1
+        todo = todo[~done]
+        den = ghi[todo] - glo[todo]
+        t[todo] = np.where(den > 0, (lo[todo] * ghi[todo] - hi[todo] * glo[todo])
+                           / np.maximum(den, 1e-300), 0.5 * (lo[todo] + hi[todo]))
+    return t
+
+
+def _leaf_forms(A, B, C, k, codes):
+    """Affine forms ``(a, b, c)`` of the signed determinants ``codes`` in slices ``k``."""
+    codes = np.asarray(codes)
+    key = codes // 2
+    sign = np.where(codes % 2 == 1, 1.0, -1.0)
+    return sign * A[k, key], sign * B[k, key], sign * C[k, key]
+
+
+def _solve_ties(A, B, C, k, c1, c2, c3, c4):
+    """Points where ``L_c1 = L_c2`` and ``L_c3 = L_c4`` (signed determinants, affine in a
+    slice), batched over slices ``k``; NaN where the two lines are parallel."""
+    a1, b1, d1 = (u - v for u, v in zip(_leaf_forms(A, B, C, k, c1), _leaf_forms(A, B, C, k, c2)))
+    a2, b2, d2 = (u - v for u, v in zip(_leaf_forms(A, B, C, k, c3), _leaf_forms(A, B, C, k, c4)))
+    det = b1 * d2 - d1 * b2
+    scale = np.maximum(np.abs(b1) + np.abs(d1), 1e-300) * np.maximum(np.abs(b2) + np.abs(d2),
+                                                                      1e-300)
+    ok = np.abs(det) > 1e-12 * scale
+    det = np.where(ok, det, 1.0)
+    x = (-a1 * d2 + a2 * d1) / det
+    y = (-b1 * a2 + b2 * a1) / det
+    return np.where(ok, x, np.nan), np.where(ok, y, np.nan)
+
+
+def _vertices(prog, A, B, C, k, centres):
+    """Diagram vertices near ``centres`` (n, 2) of slices ``k``: the three smallest contacts
+    decided by distinct determinants at each centre, their determinants solved as
+    ``L_a = L_b = L_c``. Returns ``(n, 2)`` points, NaN where the system is singular."""
+    vals, codes = _contacts_at(prog, A, B, C, k, centres[:, 0], centres[:, 1])
+    n = len(k)
+    cols = np.arange(n)
+    order = np.argsort(vals, axis=0, kind='stable')
+    chosen = np.full((3, n), -1, dtype=np.int64)
+    found = np.zeros(n, dtype=np.int64)
+    for r in range(order.shape[0]):
+        c = codes[order[r], cols]
+        fresh = (found < 3) & np.all(chosen != c[None], axis=0)
+        chosen[np.minimum(found, 2)[fresh], cols[fresh]] = c[fresh]
+        found += fresh
+    x, y = _solve_ties(A, B, C, k, chosen[0], chosen[1], chosen[0], chosen[2])
+    bad = found < 3
+    x[bad], y[bad] = np.nan, np.nan
+    return np.stack([x, y], axis=1)
+
+
+def _in_cells(p, xs, ys, jj, ii):
+    """Points ``p`` (n, 2) inside grid cells (jj, ii), with a margin of 1e-6 cell."""
+    h = np.maximum(xs[ii + 1] - xs[ii], ys[jj + 1] - ys[jj]) * 1e-6
+    with np.errstate(invalid='ignore'):
+        return ((xs[ii] - h <= p[:, 0]) & (p[:, 0] <= xs[ii + 1] + h)
+                & (ys[jj] - h <= p[:, 1]) & (p[:, 1] <= ys[jj + 1] + h))
+
+
+def diagram_slices(model, fields, program: str = 'total') -> list:
     """Exact diagram pieces of every slice in ``fields``, as :class:`DiagramSlice` graphs.
 
-    Nodes: on every grid edge joining two free vertices of one singularity cell whose active
-    leaves ``a`` and ``b`` differ, the point where ``L_a = L_b`` (both leaves are affine along
-    the edge, so the tie point is exact), kept when rho there is free. Within one grid cell
-    the diagram is the straight tie line: two tie points in a cell are joined directly; three
-    or more meet at a junction node (their mean), joined to each - the pieces
-    :func:`tie_segments` draws.
+    Nodes: on every grid edge joining two free vertices of one singularity cell whose smallest
+    contacts A and B differ and are decided by different determinants, the point where
+    ``f_A = f_B`` (:func:`_tie_parameter`), kept when it is on the diagram
+    (:func:`voronoi_pkg.ties.on_diagram`: free, and A and B the two smallest there). Within a
+    grid cell the diagram is straight: two tie points of one contact pair are joined
+    directly; where other pairs enter the cell, the exact vertex where three contacts tie
+    (:func:`_vertex`) is a node joined to each, if it lies in the cell and on the diagram;
+    otherwise only tie points of one pair are joined. Every node and every junction is on
+    the diagram within :func:`voronoi_pkg.ties.tie_tolerance`.
     """
     prog = model.programs[program]
-    key_of = np.array([k for k, _ in prog.leaves])
-    sign_of = np.array([s for _, s in prog.leaves], dtype=float)
-    n_leaves = len(prog.leaves)
+    n_c = prog.n_contacts
     A, B, C = affine_coefficients(model, fields.phis, program)
-    rho, active, cell = fields.rho, fields.active, fields.cell
+    rho, contact, code, cell = fields.rho, fields.contact, fields.code, fields.cell
     free = fields.free
     xs, ys = fields.xs, fields.ys
+    tol = fields.tol
     shape = rho.shape
     nphi, ny, nx = shape
-    ids = {}
-    parts = []          # (k, x, y, pair) per edge direction
-    for dy, dx in ((0, 1), (1, 0)):
-        a, b = _shifted_pairs(shape, dy, dx)
-        cand = free[a] & free[b] & (cell[a] == cell[b]) & (active[a] != active[b])
+    # Tie points per grid edge: the tie of the two end contacts, or, where a third contact
+    # is the smallest there, the ties on both sides of it (two per edge, layers 0 and 1).
+    parts = []          # (direction, layer, k, j, i, x, y)
+    for d, (dy, dx) in enumerate(((0, 1), (1, 0))):
+        a, b = shifted_pairs(shape, dy, dx)
+        cand = (free[a] & free[b] & (cell[a] == cell[b]) & (contact[a] != contact[b])
+                & (code[a] != code[b]))
         k, j, i = np.nonzero(cand)
-        la, lb = active[k, j, i], active[k, j + dy, i + dx]
+        ca, cb = contact[k, j, i], contact[k, j + dy, i + dx]
         xu, yu, xv, yv = xs[i], ys[j], xs[i + dx], ys[j + dy]
-
-        def leaf(lf, x, y):
-            key = key_of[lf]
-            return sign_of[lf] * (A[k, key] + B[k, key] * x + C[k, key] * y)
-
-        du = leaf(la, xu, yu) - leaf(lb, xu, yu)
-        dv = leaf(la, xv, yv) - leaf(lb, xv, yv)
-        den = du - dv
-        t = np.clip(np.divide(du, den, out=np.full_like(du, 0.5), where=den != 0), 0.0, 1.0)
-        parts.append((k, j, i, xu + t * (xv - xu), yu + t * (yv - yu),
-                      np.minimum(la, lb) * n_leaves + np.maximum(la, lb)))
-        ids[(dy, dx)] = np.full((nphi, ny - dy, nx - dx), -1, dtype=np.int64)
-    k = np.concatenate([p[0] for p in parts])
-    px = np.concatenate([p[3] for p in parts])
-    py = np.concatenate([p[4] for p in parts])
-    pair = np.concatenate([p[5] for p in parts])
+        t = _tie_parameter(prog, A, B, C, k, xu, yu, xv, yv, ca, cb)
+        px, py = xu + t * (xv - xu), yu + t * (yv - yu)
+        vals, codes = _contacts_at(prog, A, B, C, k, px, py)
+        mid = np.argmin(vals, axis=0)
+        c = np.arange(len(k))
+        third = ((mid != ca) & (mid != cb) & (vals.min(axis=0) > tol)
+                 & (codes[mid, c] != codes[ca, c]) & (codes[mid, c] != codes[cb, c]))
+        parts.append((d, 0, k[~third], j[~third], i[~third], px[~third], py[~third]))
+        w = third
+        t1 = _tie_parameter(prog, A, B, C, k[w], xu[w], yu[w], px[w], py[w], ca[w], mid[w])
+        t2 = _tie_parameter(prog, A, B, C, k[w], px[w], py[w], xv[w], yv[w], mid[w], cb[w])
+        parts.append((d, 0, k[w], j[w], i[w], xu[w] + t1 * (px[w] - xu[w]),
+                      yu[w] + t1 * (py[w] - yu[w])))
+        parts.append((d, 1, k[w], j[w], i[w], px[w] + t2 * (xv[w] - px[w]),
+                      py[w] + t2 * (yv[w] - py[w])))
+    k = np.concatenate([p[2] for p in parts])
+    px = np.concatenate([p[5] for p in parts])
+    py = np.concatenate([p[6] for p in parts])
+    vals, codes = _contacts_at(prog, A, B, C, k, px, py)
+    i1, f1, i2, f2 = two_smallest(vals, codes)
+    keep = (f1 > tol) & (f2 - f1 <= tie_tolerance(f1, f2, tol))
+    lo_c, hi_c = np.minimum(i1, i2), np.maximum(i1, i2)
+    pair = lo_c * n_c + hi_c
+    cols = np.arange(len(k))
+    # Deciding determinants of the pair (lower contact first): the straight line of the tie.
+    line = np.stack([codes[lo_c, cols], codes[hi_c, cols]])
     q = np.stack([px, py, fields.phis[k]], axis=1)
-    node_rho = model.rho(q, program) if len(q) else np.zeros(0)
-    keep = node_rho > fields.tol
+    node_rho = f1
     gid = np.cumsum(keep) - 1
+    ids = {(d, layer): np.full((nphi, ny - dy, nx - dx), -1, dtype=np.int64)
+           for d, (dy, dx) in enumerate(((0, 1), (1, 0))) for layer in (0, 1)}
     start = 0
-    for (dy, dx), p in zip(((0, 1), (1, 0)), parts):
-        n = len(p[0])
+    for d, layer, pk, pj, pi, _, _ in parts:
+        n = len(pk)
         sel = keep[start:start + n]
-        ids[(dy, dx)][p[0][sel], p[1][sel], p[2][sel]] = gid[start:start + n][sel]
+        ids[(d, layer)][pk[sel], pj[sel], pi[sel]] = gid[start:start + n][sel]
         start += n
-    k, q, pair, node_rho = k[keep], q[keep], pair[keep], node_rho[keep]
-    H, V = ids[(0, 1)], ids[(1, 0)]
-    sides = np.stack([H[:, :-1, :], H[:, 1:, :], V[:, :, :-1], V[:, :, 1:]])  # per cell
+    k, q, pair, node_rho, line = k[keep], q[keep], pair[keep], node_rho[keep], line[:, keep]
+    sides = np.stack([s for layer in (0, 1) for s in (
+        ids[(0, layer)][:, :-1, :], ids[(0, layer)][:, 1:, :],
+        ids[(1, layer)][:, :, :-1], ids[(1, layer)][:, :, 1:])])     # per cell
     count = np.sum(sides >= 0, axis=0)
-    eu, ev = [], []
+    big = np.iinfo(np.int64).max
+    n1 = np.max(sides, axis=0)                         # the two ids when count == 2
+    n2 = np.where(sides >= 0, sides, big).min(axis=0)
     two = count == 2
-    for s1 in range(4):
-        for s2 in range(s1 + 1, 4):
-            ok = two & (sides[s1] >= 0) & (sides[s2] >= 0)
-            eu.append(sides[s1][ok])
-            ev.append(sides[s2][ok])
-    # Junctions: cells where three or more tie lines enter.
-    jk, jj, ji = np.nonzero(count >= 3)
+    same = np.zeros(two.shape, dtype=bool)
+    same[two] = pair[n1[two]] == pair[n2[two]]
+    new_q, new_k, new_pair, eu, ev = [], [], [], [], []
     n_nodes = len(q)
-    if len(jk):
-        members = sides[:, jk, jj, ji]                        # (4, nj)
-        has = members >= 0
-        safe = np.where(has, members, 0)
-        centre = np.sum(np.where(has[..., None], q[safe], 0.0), axis=0) / has.sum(0)[:, None]
-        c_rho = model.rho(centre, program)
-        ok = c_rho > fields.tol
-        cid = n_nodes + np.cumsum(ok) - 1
-        for s in range(4):
-            sel = ok & has[s]
-            eu.append(members[s][sel])
-            ev.append(cid[sel])
-        k = np.r_[k, jk[ok]]
-        q = np.vstack([q, centre[ok]])
-        pair = np.r_[pair, np.full(int(ok.sum()), -1)]
-        node_rho = np.r_[node_rho, c_rho[ok]]
-    eu, ev = np.concatenate(eu), np.concatenate(ev)
+
+    def add_nodes(points, kk, pairs, on):
+        """Append diagram nodes; returns their global ids."""
+        first = n_nodes + sum(len(x) for x in new_q)
+        new_q.append(np.c_[points[on], fields.phis[kk[on]]])
+        new_k.append(kk[on])
+        new_pair.append(pairs[on])
+        return first + np.arange(int(on.sum()))
+
+    # Cells crossed by one piece of one contact pair: straight unless a contact changes its
+    # deciding determinant inside the cell; then the bend is the point where both lines meet.
+    sk, sj, si = np.nonzero(same)
+    a, b = n1[sk, sj, si], n2[sk, sj, si]
+    bent = np.any(line[:, a] != line[:, b], axis=0)
+    bx, by = _solve_ties(A, B, C, sk[bent], line[0, a[bent]], line[1, a[bent]],
+                         line[0, b[bent]], line[1, b[bent]])
+    bend = np.stack([bx, by], axis=1)
+    vb, cb = _contacts_at(prog, A, B, C, sk[bent], np.nan_to_num(bx), np.nan_to_num(by))
+    good = _in_cells(bend, xs, ys, sj[bent], si[bent]) & on_diagram(vb, cb, tol)
+    mid = add_nodes(bend, sk[bent], pair[a[bent]], good)
+    ab, bb = a[bent][good], b[bent][good]
+    eu += [a[~bent], ab, bb]
+    ev += [b[~bent], mid, mid]
+    # Bends that are not on the diagram inside the cell: the chord (its midpoint is checked
+    # by the tests against the tie tolerance of a grid spacing).
+    eu.append(a[bent][~good])
+    ev.append(b[bent][~good])
+    # Cells where pieces of different pairs meet: the exact vertex where three contacts
+    # tie, joined to every tie point of the cell; else only pieces of one pair are joined.
+    jk, jj, ji = np.nonzero((count >= 3) | (two & ~same))
+    members = sides[:, jk, jj, ji]                          # (8, nj)
+    has = members >= 0
+    safe = np.where(has, members, 0)
+    centre = (np.sum(np.where(has[..., None], q[safe][..., :2], 0.0), axis=0)
+              / np.maximum(has.sum(0), 1)[:, None])
+    vert = _vertices(prog, A, B, C, jk, centre)
+    vv, cv = _contacts_at(prog, A, B, C, jk, np.nan_to_num(vert[:, 0]),
+                          np.nan_to_num(vert[:, 1]))
+    good = _in_cells(vert, xs, ys, jj, ji) & on_diagram(vv, cv, tol)
+    vid = add_nodes(vert, jk, np.full(len(jk), -1), good)
+    vid_of = np.full(len(jk), -1)
+    vid_of[good] = vid
+    for s in range(len(sides)):
+        sel = good & has[s]
+        eu.append(members[s][sel])
+        ev.append(vid_of[sel])
+    for c in np.flatnonzero(~good):
+        m = members[:, c][has[:, c]]
+        for pc in np.unique(pair[m]):
+            grp = m[pair[m] == pc]
+            if len(grp) == 2:
+                eu.append(grp[:1])
+                ev.append(grp[1:])
+    if new_q:
+        extra = np.vstack(new_q)
+        ek = np.concatenate(new_k)
+        ev_, ec = _contacts_at(prog, A, B, C, ek, extra[:, 0], extra[:, 1])
+        k = np.r_[k, ek]
+        q = np.vstack([q, extra])
+        pair = np.r_[pair, np.concatenate(new_pair)]
+        node_rho = np.r_[node_rho, ev_.min(axis=0)]
+    eu = np.concatenate(eu).astype(np.int64)
+    ev = np.concatenate(ev).astype(np.int64)
     order = np.argsort(k, kind='stable')
     local = np.empty(len(k), dtype=np.int64)
     bounds = np.searchsorted(k[order], np.arange(nphi + 1))

@@ -143,6 +143,40 @@ class RhoProgram:
 
         return ev(self.root)
 
+    @property
+    def n_contacts(self) -> int:
+        """Number of children of the root min node: the *contacts* of the simplified Voronoi
+        diagram (:mod:`voronoi_pkg.ties`)."""
+        return len(self.root.children) if _is_min(self.root) else 1
+
+    def contact_values(self, dets) -> tuple:
+        """Value and deciding leaf of every contact (child of the root min node).
+
+        Returns ``(values, codes)``, each ``(n_contacts, ...)``; a code is ``2 * key_index +
+        (sign > 0)`` of the signed determinant that decides the contact's value (first child
+        on ties, as in :meth:`evaluate`). rho is ``values.min(axis=0)``.
+        """
+        dets = _rows(dets)
+        value = self._leaf_values(dets, {})
+        shape = np.shape(dets[0])
+
+        def ev(node):
+            if not isinstance(node, _Node):
+                key_index, sign = self.leaves[node]
+                return value(node), np.full(shape, 2 * key_index + (sign > 0), dtype=np.int32)
+            best, arg = ev(node.children[0])
+            best = np.array(best, copy=True)
+            for child in node.children[1:]:
+                val, idx = ev(child)
+                better = val < best if node.op == 'min' else val > best
+                np.copyto(best, val, where=better)
+                np.copyto(arg, idx, where=better)
+            return best, arg
+
+        kids = self.root.children if _is_min(self.root) else (self.root,)
+        vals, codes = zip(*(ev(k) for k in kids))
+        return np.stack(vals), np.stack(codes)
+
     def sub_values(self, dets):
         """Values of the root's children (e.g. the AND-ed factors), ``(n_children, ...)``."""
         value = self._leaf_values(_rows(dets), {})
@@ -158,6 +192,10 @@ class RhoProgram:
             return out
 
         return np.stack([ev(k) for k in kids])
+
+
+def _is_min(node):
+    return isinstance(node, _Node) and node.op == 'min'
 
 
 def _rows(dets):

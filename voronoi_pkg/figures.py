@@ -92,16 +92,17 @@ def slice_summary(model, phi, xs, ys):
     """Coarse invariant and vertices of one diagram slice.
 
     Returns ``((#connected pieces, #vertices), vertices (m, 2))``: vertices are clusters of
-    free grid cells that see three or more active leaves (where diagram edges meet). Fig. 3
+    free grid cells that see three or more smallest contacts (where diagram edges meet). Fig. 3
     shows a slice where the invariant changes and links vertices of consecutive slices: the
     traces are the edges of the diagram across orientation.
     """
     X, Y = np.meshgrid(xs, ys)
     q = np.stack([X, Y, np.full_like(X, phi)], axis=-1)
-    rho, active, cell = model.fields(q)
-    mask = diagram_mask(rho, active, cell, model.free_tol)
+    rho, contact, code, cell = model.fields(q)
+    mask = diagram_mask(rho, contact, code, cell, model.free_tol)
     _, pieces = ndimage.label(mask, structure=np.ones((3, 3)))
-    blocks = np.stack([active[:-1, :-1], active[1:, :-1], active[:-1, 1:], active[1:, 1:]])
+    blocks = np.stack([contact[:-1, :-1], contact[1:, :-1], contact[:-1, 1:],
+                       contact[1:, 1:]])
     srt = np.sort(blocks, axis=0)
     distinct = 1 + np.sum(srt[1:] != srt[:-1], axis=0)
     free = np.all(np.stack([rho[:-1, :-1], rho[1:, :-1], rho[:-1, 1:], rho[1:, 1:]])

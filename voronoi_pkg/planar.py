@@ -163,25 +163,39 @@ class PlanarModel:
         return self._chunked(q, lambda c: prog.evaluate(self.determinants(c, prog, False)),
                              [float, np.int32])
 
+    def contact_values(self, q, program='total'):
+        """Value and deciding determinant code of every contact (root child of rho's tree,
+        :mod:`voronoi_pkg.ties`) at configurations ``q`` (..., 3): ``(n_contacts, ...)``
+        each."""
+        prog = self.programs[program]
+        q = np.asarray(q, dtype=float)
+        vals, codes = prog.contact_values(self.determinants(q.reshape(-1, 3), prog))
+        n = vals.shape[0]
+        return vals.reshape((n,) + q.shape[:-1]), codes.reshape((n,) + q.shape[:-1])
+
     def fields(self, q, program='total'):
-        """``(rho, active_leaf, cell)`` at ``q`` in one pass; ``cell`` encodes the sign vector
-        of the pure-condition determinants (the singularity cell) as an integer."""
+        """``(rho, contact, code, cell)`` at ``q`` in one pass: rho, the smallest contact,
+        the determinant deciding it, and ``cell``, the sign vector of the pure-condition
+        determinants (the singularity cell) as an integer."""
         prog = self.programs[program]
         rows = [prog.keys.index(k) for k in self.singular_keys if k in prog.keys]
         extra = [k for k in self.singular_keys if k not in prog.keys]
 
         def one(c):
             dets = self.determinants(c, prog, False)
-            rho, active = prog.evaluate(dets)
+            vals, codes = prog.contact_values(dets)
+            i1 = np.argmin(vals, axis=0)
+            rho = np.take_along_axis(vals, i1[None], axis=0)[0]
+            code = np.take_along_axis(codes, i1[None], axis=0)[0]
             sing = [dets[r] for r in rows]
             if extra:
                 sing += evaluate_determinants(extra, self.points(c), False)
-            code = np.zeros(len(c), dtype=np.int64)
+            cell = np.zeros(len(c), dtype=np.int64)
             for i, d in enumerate(sing):
-                code += (np.sign(d).astype(np.int64) + 1) * 3 ** i
-            return rho, active, code
+                cell += (np.sign(d).astype(np.int64) + 1) * 3 ** i
+            return rho, i1, code, cell
 
-        return self._chunked(q, one, [float, np.int32, np.int64])
+        return self._chunked(q, one, [float, np.int32, np.int32, np.int64])
 
     def singular_signs(self, q):
         """Signs of the pure-condition determinants, ``(n_singular, ...)`` of -1/0/+1."""

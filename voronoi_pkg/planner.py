@@ -9,8 +9,8 @@ onto the diagram, and to join these points with a path that lies wholly on the d
 2. answers "no path" at once when start and goal lie in different singularity cells: the
    pure-condition determinants have different signs, so every path would cross a singularity
    (e.g. P3 above and below the base line);
-3. retracts start and goal onto the diagram by rho ascent: a straight climb along the gradient
-   of the active (affine) leaf until another leaf becomes active - a point of the diagram;
+3. retracts start and goal onto the diagram (:mod:`voronoi_pkg.ties`: the two smallest
+   contacts tie) by rho ascent within the slice (:meth:`VoronoiPlanner.retract`);
 4. searches only along diagram edges (:mod:`voronoi_pkg.diagram`): the exact straight
    pieces within each phi slice and links between diagram vertices of consecutive slices,
    with Dijkstra (length, phi weighted by ``phi_scale``) among edges keeping at least half the
@@ -37,12 +37,13 @@ from scipy.sparse.csgraph import breadth_first_order, dijkstra, minimum_spanning
 
 from paramotion.errors import UserError
 from voronoi_pkg.diagram import (
+    contact_evaluator,
     diagram_slices,
     grid_axes,
-    leaf_evaluator,
     link_slices,
     slice_fields,
 )
+from voronoi_pkg.ties import on_diagram
 
 __all__ = ['KIND_NAMES', 'MAX_GRID_VERTICES', 'PlanResult', 'VoronoiPlanner', 'check_path',
            'densify', 'diagram_segments', 'near_diagram_fraction', 'validate_configuration']
@@ -176,13 +177,16 @@ def _bottleneck(n_nodes, u, v, clear, s_id, g_id):
 
 def near_diagram_fraction(model, path, delta, phi_scale):
     """Length share of a dense ``path`` (phi weighted by ``phi_scale``) whose samples lie
-    within ``delta`` in x or y of a change of rho's active leaf - of the diagram itself."""
+    within ``delta`` in x or y of the diagram: a probe there has another smallest contact,
+    decided by another determinant (:mod:`voronoi_pkg.ties`)."""
     path = np.asarray(path, dtype=float)
     if len(path) < 2:
         return 1.0
-    acts = np.array([model.evaluate(path + np.array([dx, dy, 0.0]))[1]
-                     for dx, dy in ((0, 0), (delta, 0), (-delta, 0), (0, delta), (0, -delta))])
-    near = np.any(acts != acts[:1], axis=0)
+    probes = [model.fields(path + np.array([dx, dy, 0.0]))
+              for dx, dy in ((0, 0), (delta, 0), (-delta, 0), (0, delta), (0, -delta))]
+    contact = np.array([f[1] for f in probes])
+    code = np.array([f[2] for f in probes])
+    near = np.any((contact != contact[:1]) & (code != code[:1]), axis=0)
     d = np.diff(path, axis=0)
     length = np.sqrt(d[:, 0] ** 2 + d[:, 1] ** 2 + (phi_scale * d[:, 2]) ** 2)
     total = float(length.sum())
@@ -244,7 +248,8 @@ class VoronoiPlanner:
 
     @property
     def base_fields(self):
-        """rho, active leaf and cell on the uniform slices' grid (computed on first use)."""
+        """rho, smallest contact and cell on the uniform slices' grid (computed on first
+        use)."""
         if self._fields is None:
             self._fields = slice_fields(self.model, self.phis, self.xs, self.ys)
         return self._fields
@@ -308,38 +313,54 @@ class VoronoiPlanner:
 
     # -- retraction ----------------------------------------------------------------------------
     def retract(self, q):
-        """Climb rho from ``q`` within its slice onto the diagram.
+        """Climb rho from ``q`` within its slice onto the diagram (:mod:`voronoi_pkg.ties`).
 
-        In a slice every leaf is affine, so rho increases fastest along the gradient of the
-        active leaf; the straight climb ends exactly where another leaf becomes active (found
-        by bisection): a point of the simplified Voronoi diagram. At the domain's edge the
-        climb slides along it. Returns ``(chain (m, 3) from q, on_diagram)``; rho increases
-        along the chain, so it moves away from the obstacles.
+        In a slice every contact is piecewise affine, so rho increases fastest along the
+        gradient of the determinant deciding the smallest contact. The straight climb runs
+        until that changes (found by bisection): where another contact, decided by another
+        determinant, becomes the smallest, the point is on the diagram and the climb ends.
+        A change inside the smallest contact is not the diagram: at a valley crease (the new
+        determinant still increases along the climb) the climb goes on along the new
+        gradient; at a ridge inside the contact it follows the ridge while both determinants
+        increase. At the domain's edge the climb slides along it. Returns ``(chain (m, 3)
+        from q, on_diagram)``; rho increases along the chain.
         """
         model = self.model
-        prog = model.programs['total']
-        key_of = [k for k, _ in prog.leaves]
-        sign_of = [s for _, s in prog.leaves]
-        evaluate, (A, B, C) = leaf_evaluator(model, q[2])
-        A, B, C = A[None], B[None], C[None]
+        evaluate, (A, B, C) = contact_evaluator(model, q[2])
         dom = model.domain
         lo = np.array([dom.x[0], dom.y[0]])
         hi = np.array([dom.x[1], dom.y[1]])
         eps = 1e-9 * float(np.max(hi - lo))
+        tol = model.free_tol
         p = np.array(q[:2], dtype=float)
         chain = [np.array(q, dtype=float)]
 
-        def active(pts):
-            return evaluate(pts)[1]
+        def state(pts):
+            vals, codes = evaluate(pts)
+            i1 = np.argmin(vals, axis=0)
+            return i1, codes[i1, np.arange(len(i1))], vals, codes
 
-        for _ in range(64):
-            leaf = int(active(p)[0])
-            g = sign_of[leaf] * np.array([B[0, key_of[leaf]], C[0, key_of[leaf]]])
+        def grad(code):
+            key, sign = code // 2, (1.0 if code % 2 else -1.0)
+            return sign * np.array([B[key], C[key]])
+
+        def clip(g):
+            g = g.copy()
             for ax in range(2):
                 if (p[ax] <= lo[ax] + eps and g[ax] < 0) or (p[ax] >= hi[ax] - eps and g[ax] > 0):
                     g[ax] = 0.0
+            return g
+
+        ridge = None            # (codes of the two determinants, direction) on a ridge
+        for _ in range(64):
+            i1, c1, vals, codes = state(p)
+            if on_diagram(vals, codes, tol)[0]:
+                return np.array(chain), True
+            i1, c1 = int(i1[0]), int(c1[0])
+            allowed = {c1} if ridge is None else set(ridge[0])
+            g = clip(grad(c1) if ridge is None else ridge[1])
             norm = float(np.hypot(*g))
-            if norm <= 1e-12 * (abs(A[0, key_of[leaf]]) + 1.0):
+            if norm <= 1e-12 * (float(np.max(np.abs(grad(c1)))) + 1.0):
                 return np.array(chain), False
             d = g / norm
             with np.errstate(divide='ignore', invalid='ignore'):
@@ -347,8 +368,13 @@ class VoronoiPlanner:
             tmax = float(max(0.0, np.min(lim)))
             if tmax <= eps:
                 return np.array(chain), False
+
+            def changed(ts):
+                j, c, _, _ = state(p + ts[:, None] * d)
+                return (j != i1) | ~np.isin(c, list(allowed))
+
             ts = np.linspace(0.0, tmax, max(2, int(math.ceil(tmax / (self.h / 4)))) + 1)[1:]
-            other = np.flatnonzero(active(p + ts[:, None] * d) != leaf)
+            other = np.flatnonzero(changed(ts))
             if not len(other):
                 p = np.clip(p + tmax * d, lo, hi)
                 chain.append(np.r_[p, q[2]])
@@ -357,15 +383,31 @@ class VoronoiPlanner:
             t_hi = ts[other[0]]
             for _ in range(4):      # bracket shrinks 256-fold per vectorised pass
                 ts = np.linspace(t_lo, t_hi, 257)[1:-1]
-                change = np.flatnonzero(active(p + ts[:, None] * d) != leaf)
+                change = np.flatnonzero(changed(ts))
                 if len(change):
                     t_hi = ts[change[0]]
                     t_lo = ts[change[0] - 1] if change[0] > 0 else t_lo
                 else:
                     t_lo = ts[-1]
+            j, c2, vals, codes = state((p + t_hi * d)[None])
+            j, c2 = int(j[0]), int(c2[0])
             p = p + t_lo * d
             chain.append(np.r_[p, q[2]])
-            return np.array(chain), True
+            if j != i1 and c2 not in allowed:
+                # Another contact became the smallest: the tie of two contacts, the diagram.
+                return np.array(chain), bool(on_diagram(*evaluate(p), tol)[0])
+            g2 = grad(c2)
+            if g2 @ d > 0:
+                ridge = None        # valley crease inside the contact: climb on
+                p = p + (t_hi - t_lo) * d
+                continue
+            # Ridge inside the contact: follow it while both determinants increase.
+            g1 = grad(c1)
+            e = np.array([-(g1 - g2)[1], (g1 - g2)[0]])
+            e = e if g1 @ e > 0 else -e
+            if not g1 @ e > 1e-12 * float(np.hypot(*g1)) * float(np.hypot(*e)):
+                return np.array(chain), False      # a peak of the contact, off the diagram
+            ridge = ((c1, c2), e)
         return np.array(chain), False
 
     # -- search --------------------------------------------------------------------------------
@@ -500,7 +542,9 @@ class VoronoiPlanner:
 
         reason = self._singularity_certificate(start, goal)
         if reason:
+            stats['decided_by'] = 'singularity certificate'
             return result('no_path', reason)
+        stats['decided_by'] = 'diagram search'
         tick('retract')
         chains = self._retract_ends(start, goal, stats)
         tick('slices')
@@ -608,7 +652,7 @@ class VoronoiPlanner:
         stats['length_by_kind'] = {KIND_NAMES[k]: float(seg_len[seg_kind == k].sum())
                                    for k in KIND_NAMES if np.any(seg_kind == k)}
         # The same share measured on rho itself: within 0.05 units, and within one grid
-        # spacing (the resolution at which the diagram is sampled), of an active-leaf change.
+        # spacing (the resolution at which the diagram is sampled), of a tie of two contacts.
         stats['on_diagram_measured'] = {
             f'within {d:g}': near_diagram_fraction(model, samples, d, self.phi_scale)
             for d in (0.05, self.h)}

@@ -431,35 +431,13 @@ class Spatial321Model:
             if len(c) < _SMALL:
                 vals, codes = self.flat.evaluate(dets)
             else:
-                vals, codes = self._tree_contacts(dets)
+                vals, codes = self.program.contact_values(dets)
             extra = self.extra_values(c, self.points(c, P))
             ecodes = 2 * n_det + np.arange(n_extra, dtype=np.int32)[:, None]
             return (np.concatenate([vals, extra]).T,
                     np.concatenate([codes, np.broadcast_to(ecodes, extra.shape)]).T)
         n = len(self.contacts) + n_extra
         return self._chunked(q, fn, [(float, (n,)), (np.int32, (n,))])
-
-    def _tree_contacts(self, dets):
-        """Contact values and leaf codes node by node (faster than :class:`FlatContacts`
-        for large batches, where numpy's per-call overhead no longer matters)."""
-        prog = self.program
-
-        def ev(node):
-            if isinstance(node, (int, np.integer)):
-                ki, sign = prog.leaves[node]
-                val = dets[ki] if sign > 0 else -dets[ki]
-                return val, np.full(val.shape, 2 * ki + (sign > 0), dtype=np.int32)
-            best, arg = ev(node.children[0])
-            best = np.array(best, copy=True)
-            for child in node.children[1:]:
-                val, idx = ev(child)
-                better = val < best if node.op == 'min' else val > best
-                np.copyto(best, val, where=better)
-                np.copyto(arg, idx, where=better)
-            return best, arg
-
-        vals, codes = zip(*(ev(k) for k in prog.root.children))
-        return np.stack(vals), np.stack(codes)
 
     def contact_names(self):
         """Readable name of each row of :meth:`contact_values`."""

@@ -1,28 +1,42 @@
 """Retraction onto the simplified Voronoi diagram of the 3-2-1 platform and a roadmap whose
 edges run along it (section 5 of Vaca, Aranda & Thomas, after Canny & Donald).
 
-rho is the minimum over *contacts* (the fused factors of
-:class:`~voronoi_pkg.spatial321.Spatial321Model`, plus bounds and leg limits). The
-diagram is where the two smallest contacts tie: the pose is equidistant, in the paper's rho
-sense, from two basic contacts. Contacts whose values are decided by the same signed
-determinant are one feature and do not tie (:meth:`Spatial321Model.contact_values`).
+The diagram is the one of :mod:`voronoi_pkg.ties`, shared with the planar planner: poses
+where the two smallest *contacts* tie, counting two contacts decided by the same signed
+determinant as one feature. The contacts are the fused factors of
+:class:`~voronoi_pkg.spatial321.Spatial321Model` (children of rho's root min node) followed
+by the planning bounds and leg-length margins, which the 3-2-1 model adds as contacts (the
+planar model has neither). The configuration space is 6-D, so the diagram (a 5-D set) is not
+built slice by slice as in :mod:`voronoi_pkg.diagram`; it is reached and followed pointwise:
 
 * :func:`tie_measure`: the two smallest distinct contacts, their gap and the distance to their
   tie set, first order: ``gap / |grad(f2 - f1)|`` in the metric ``(m, m, m, s rad, s rad,
   s rad)`` with ``s = angle_scale``. Determinants are affine in position at a fixed
   orientation, so the estimate is exact for moves in position.
 * :func:`retract`: steepest ascent of rho. At each step the gradient of the smallest contact
-  (central differences), then a line search along it that stops where another contact becomes
-  the smallest (doubling, then bisection onto the tie); repeated until the pose is within
-  ``tie_tol`` of a tie. rho grows at every accepted step.
-* :class:`DiagramRoadmapPlanner`: deterministic (scrambled Halton) samples are retracted onto
-  the diagram; k nearest diagram points are joined by *traced* edges: a straight piece is kept
-  if every probe along it (every ``probe_step``) is within ``diagram_tol`` of a tie, otherwise
-  its midpoint is retracted onto the diagram and both halves are traced again (to
-  ``trace_depth`` levels). Every traced edge is then checked densely (``check_step`` m,
-  ``check_dangle`` rad: rho > 0, no singularity sign change, no leg passing through a leg).
-  Every candidate edge is traced and checked (no lazy shortcut), so "no path" means: start
-  and goal retractions lie in different connected components of this roadmap. No ROS imports.
+  (forward differences of its deciding determinant), then a line search along it that stops
+  where another contact becomes the smallest (doubling, then bisection onto the tie);
+  repeated until the pose is within ``tie_tol`` of a tie. rho grows at every accepted step.
+* :func:`project_to_tie`: Newton steps on ``f2 - f1 = 0`` (rho need not grow), with
+  :func:`retract` for the poses that do not converge; used to trace edges.
+* :class:`DiagramRoadmapPlanner`: deterministic (scrambled Halton) samples in the start's
+  singularity cell are retracted onto the diagram together with start and goal; each node's
+  ``k`` nearest nodes (scaled 6-D distance) are candidate edges. A lazy Dijkstra search takes
+  the shortest candidate path and, for its edges not yet tested (plus up to ``batch_edges``
+  untested edges at its nodes), *traces* them (:meth:`~DiagramRoadmapPlanner.trace`: probes
+  every ``probe_step`` along the chord projected onto the tie set, midpoints of remaining gaps
+  projected and inserted for up to three rounds; refused if a projection misses the tie set or
+  a gap over ``max_gap`` remains) and checks the traced polylines densely (``check_step`` m,
+  ``check_dangle`` rad: rho > 0, no singularity sign change, no leg passing through a leg);
+  refused edges are dropped and the search repeats. An edge is dropped only after it fails,
+  so "no path" is the answer of the fully traced roadmap: start and goal retractions lie in
+  different connected components of it. The path found is shortened along the diagram
+  (:meth:`~DiagramRoadmapPlanner._shortcut`: traced jumps to later path nodes that pass the
+  dense check), assembled with the two retraction chains and checked densely again; its
+  share within ``diagram_tol`` of a tie is reported
+  (:meth:`~DiagramRoadmapPlanner.path_on_diagram`).
+
+No ROS imports.
 """
 import time
 from dataclasses import dataclass, field
@@ -41,18 +55,10 @@ from voronoi_pkg.spatial321 import (
     densify6,
     validate_pose,
 )
+from voronoi_pkg.ties import two_smallest
 
 __all__ = ['DiagramRoadmapPlanner', 'SpatialPlanResult', 'project_to_tie', 'retract',
            'tie_measure']
-
-
-def _two_smallest(values, leaves):
-    """Index and value of the smallest contact and of the smallest one with another leaf."""
-    cols = np.arange(values.shape[1])
-    i1 = np.argmin(values, axis=0)
-    other = np.where(leaves == leaves[i1, cols], np.inf, values)
-    i2 = np.argmin(other, axis=0)
-    return i1, values[i1, cols], i2, other[i2, cols]
 
 
 def _leaf_gradients(model, q, codes, h=1e-6):
@@ -96,7 +102,7 @@ def tie_measure(model, q, grads=False):
     """
     q = np.atleast_2d(np.asarray(q, dtype=float))
     vals, leaves = model.contact_values(q)
-    i1, f1, i2, f2 = _two_smallest(vals, leaves)
+    i1, f1, i2, f2 = two_smallest(vals, leaves)
     cols = np.arange(len(q))
     g = _leaf_gradients(model, np.vstack([q, q]), np.r_[leaves[i1, cols], leaves[i2, cols]])
     g = g.reshape(2, len(q), 6)
