@@ -15,11 +15,14 @@ import pytest
 from paramotion.cli import main as cli_main
 from paramotion.errors import UserError
 from voronoi_pkg.diagram import grid_axes, slice_fields
+from voronoi_pkg.grid_baseline import ClearanceGridPlanner
 from voronoi_pkg.planar import (
     PAPER_GOAL,
     PAPER_START,
+    Domain,
     load_scene,
     paper_model,
+    planar_model,
 )
 from voronoi_pkg.planner import ATTACH, RETRACTION, SLICE_LINK, SLICE_PIECE, VoronoiPlanner
 from voronoi_pkg.ties import tie_gap
@@ -297,4 +300,30 @@ def test_paper_query_in_the_exact_fig3_domain(tmp_path):
     assert res.path[:, 2].min() >= -math.pi / 2 - 1e-9
     assert res.path[:, 2].max() <= math.pi / 2 + 1e-9
     np.testing.assert_allclose(res.path[-1], PAPER_GOAL, atol=1e-9)
+    assert independent_check(res.path) is None
+
+
+def test_no_path_that_only_the_diagram_search_can_give():
+    """A wall across the boundary square separates start and goal, which lie on the same side
+    of every singularity (the certificate has nothing to say): the diagram search over every
+    slice answers "no path". Without the wall the same query has a path (causal), and the
+    clearance-weighted grid planner agrees that the wall separates them."""
+    wall = [(-30.0, -22.0), (60.0, -22.0), (60.0, -18.0), (-30.0, -18.0)]
+    start, goal = (20.0, -10.0, 0.0), (20.0, -30.0, 0.0)
+    walled = planar_model(((0.0, 0.0), (15.0, 0.0)), 10.0, [tuple(p) for p in SQUARE], [wall],
+                          Domain())
+    planner = VoronoiPlanner(walled, h=1.5, dphi_deg=5.0)
+    assert np.array_equal(walled.singular_signs(np.array(start)),
+                          walled.singular_signs(np.array(goal)))
+    assert planner._singularity_certificate(np.array(start), np.array(goal)) == ''
+    res = planner.plan(start, goal)
+    assert res.status == 'no_path'
+    assert res.stats['decided_by'] == 'diagram search'
+    assert res.stats['slices'] == len(planner.phis) and res.stats['diagram_nodes'] > 1000
+    assert 'Voronoi diagram' in res.reason
+    assert not ClearanceGridPlanner(walled, h=1.5, dphi_deg=5.0).plan(start, goal).found
+    open_ = planar_model(((0.0, 0.0), (15.0, 0.0)), 10.0, [tuple(p) for p in SQUARE], [],
+                         Domain())
+    res = VoronoiPlanner(open_, h=1.5, dphi_deg=5.0).plan(start, goal)
+    assert res.found, res.reason
     assert independent_check(res.path) is None
