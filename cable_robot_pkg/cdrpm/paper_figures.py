@@ -402,24 +402,29 @@ def _fitted_case(case):
     desc, step, tow_step, plane_step = case
     paper = np.array([row[1] for row in TABLE2_ROWS])
     shares = table2_in_frame(desc, grid_points(grid_axes(desc, step)))
-    tow = total_orientation_workspace(desc, (30, 30, 10), step=tow_step)
-    sizes = workpiece_size_scan(desc, WORKPIECE_SIZES_M, plane_step)
-    return {'table2_in_frame': shares.tolist(),
-            'table2_worst': float(np.max(np.abs(shares - paper))),
-            'tow_box_fits': contains_box(tow.accessible, tow.axes, PAPER_TOW_BOX_M),
-            'workpiece_sizes': sizes}
+    worst = float(np.max(np.abs(shares - paper)))
+    out = {'table2_in_frame': shares.tolist(), 'table2_worst': worst}
+    if worst <= TOLERANCE_POINTS:
+        tow = total_orientation_workspace(desc, (30, 30, 10), step=tow_step)
+        out.update({'tow_box_fits': contains_box(tow.accessible, tow.axes, PAPER_TOW_BOX_M),
+                    'workpiece_sizes': workpiece_size_scan(desc, WORKPIECE_SIZES_M,
+                                                           plane_step)})
+    return out
 
 
 def heldout_search(desc: RobotDescription, pitch: float = 0.1, min_home_gap: float = 0.02,
                    screen_step: float = 0.2, screen_tolerance: float = 8.0,
-                   plane_step: float = 0.05, fig7_step: float = 2.0, map_cases=None) -> dict:
+                   plane_step: float = 0.05, fig7_step: float = 2.0, sample: int = 1000,
+                   seed: int = 0, map_cases=None) -> dict:
     """Which edge-anchored candidates reproduce the held-out figures together with the fitted?
 
     Candidates: those of the fit (:func:`cable_robot_pkg.cdrpm.arrangements._home_candidates`,
-    the dimensions of ``desc``). For every candidate: Fig. 7's verdict (:func:`fig7_verdict`)
-    under both rotation conventions (:func:`fig7_rotations`) and the workpiece share at
-    :data:`WORKPIECE_M`. For those near Table II on the
-    ``screen_step`` grid: Table II on the 0.05 m grid, the TOW box, and the workpiece share over
+    the dimensions of ``desc``), screened by Table II on the ``screen_step`` grid. Evaluated:
+    every candidate within ``screen_tolerance`` points of Table II there, and a random
+    ``sample`` of the others (``seed``; ``sample`` < 0: all). For each: Fig. 7's verdict
+    (:func:`fig7_verdict`) under both rotation conventions (:func:`fig7_rotations`) and the
+    workpiece share at :data:`WORKPIECE_M`. For the screened ones also Table II on the 0.05 m
+    grid and, within 5 points, the TOW box and the workpiece share over
     :data:`WORKPIECE_SIZES_M`. Returns counts and the per-candidate rows.
     """
     from cable_robot_pkg.cdrpm.arrangements import (
@@ -434,17 +439,26 @@ def heldout_search(desc: RobotDescription, pitch: float = 0.1, min_home_gap: flo
                              pitch, min_home_gap, stats, map_cases=map_cases)
     paper = np.array([row[1] for row in TABLE2_ROWS])
     screen = grid_points(grid_axes(desc, screen_step))
-    heldout = map_cases(_heldout_case, [(c[2], plane_step, fig7_step) for c in cands])
+    worst = [float(np.max(np.abs(table2_in_frame(c[2], screen) - paper))) for c in cands]
+    near = [k for k, w in enumerate(worst) if w <= screen_tolerance]
+    others = [k for k, w in enumerate(worst) if w > screen_tolerance]
+    if 0 <= sample < len(others):
+        others = sorted(np.random.default_rng(seed).choice(others, sample, replace=False))
+    chosen = sorted(near + [int(k) for k in others])
+    heldout = map_cases(_heldout_case, [(cands[k][2], plane_step, fig7_step) for k in chosen])
     rows = []
-    for (a0, a1, cdesc, _), (verdicts, share, gap) in zip(cands, heldout):
-        worst = float(np.max(np.abs(table2_in_frame(cdesc, screen) - paper)))
-        rows.append({'anchor0': a0.tolist(), 'anchor1': a1.tolist(), 'screen_worst': worst,
+    for k, (verdicts, share, gap) in zip(chosen, heldout):
+        a0, a1 = cands[k][0], cands[k][1]
+        rows.append({'anchor0': a0.tolist(), 'anchor1': a1.tolist(), 'screen_worst': worst[k],
+                     'near_table2': worst[k] <= screen_tolerance,
                      'fig7': verdicts[0], 'fig7_fixed': verdicts[1],
                      'workpiece_share': share, 'workpiece_gap_m': gap})
-    near = [k for k, r in enumerate(rows) if r['screen_worst'] <= screen_tolerance]
+    index = {k: n for n, k in enumerate(chosen)}
     fitted = map_cases(_fitted_case, [(cands[k][2], 0.05, 0.1, plane_step) for k in near])
     for k, extra in zip(near, fitted):
-        rows[k].update(extra)
+        rows[index[k]].update(extra)
+    stats.update({'candidates_total': len(cands), 'near_table2_screen': len(near),
+                  'sampled_others': len(others), 'sample_seed': seed})
     return {'stats': stats, 'rows': rows, 'summary': summarise_heldout(rows)}
 
 
@@ -463,6 +477,7 @@ def summarise_heldout(rows: list) -> dict:
     shrink = [r for r in rows if r['fig7']['shrinks']]
     work = [r for r in rows if _workpiece_ok(r['workpiece_share'], r['workpiece_gap_m'])]
     t2 = [r for r in rows if r.get('table2_worst', np.inf) <= TOLERANCE_POINTS]
+    sampled = [r for r in rows if not r.get('near_table2', 'table2_worst' in r)]
     fitted = [r for r in t2 if r.get('tow_box_fits')]
 
     def any_size(r):
@@ -478,6 +493,9 @@ def summarise_heldout(rows: list) -> dict:
     fixed = [r for r in rows if _paper_trend(r, 'fig7_fixed')]
     return {
         'candidates': len(rows),
+        'sampled_far_from_table2': len(sampled),
+        'sampled_fig7_trend': sum(1 for r in sampled if _paper_trend(r)),
+        'sampled_fig7_fixed_trend': sum(1 for r in sampled if _paper_trend(r, 'fig7_fixed')),
         'fig7_shrinks': len(shrink),
         'fig7_shrinks_by_cable_body': len(fig7),
         'workpiece_60_at_default_size': len(work),

@@ -5,7 +5,7 @@ TOW box), every published figure of Aref & Taghirad beside ours, marked fitted o
 (:func:`cable_robot_pkg.cdrpm.paper_figures.published_table`); the Fig. 7 curves and what sets
 them; the workpiece study; the ablation of each collision construct (``without``); and the
 spread of every figure when the unknown anchors move by a few centimetres. The search over all
-candidate arrangements (``paramotion workspace heldout``, about 30 minutes) is not rerun: its
+candidate arrangements (``paramotion workspace heldout``, about 10-20 minutes) is not rerun: its
 committed result, ``<out_dir>/workspace_heldout/result.json``, is summarised with the command
 and date that produced it.
 """

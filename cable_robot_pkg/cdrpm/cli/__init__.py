@@ -151,11 +151,14 @@ def register(subparsers):
                                    '(r_y limit against r_x at the centre, and the type that sets '
                                    'it) and the workpiece share; for those near Table II also '
                                    'Table II on the 0.05 m grid, the TOW box and a scan of '
-                                   'workpiece sizes. Writes DIR/result.json (about 30 minutes '
+                                   'workpiece sizes. Writes DIR/result.json (about 10 minutes '
                                    'on one core).')
     robot_arg(p)
     p.add_argument('--pitch', type=float, default=0.1,
                    help='anchor spacing along the frame edges in m (default 0.1)')
+    p.add_argument('--sample', type=int, default=1000,
+                   help='candidates far from Table II evaluated, at random (default 1000; '
+                        '-1: all, several times longer)')
     p.add_argument('--out', required=True, help='output directory')
     add_dask_args(p)
     p.set_defaults(func=heldout.run)

@@ -33,15 +33,22 @@ def run(args):
     common.finite('--pitch', args.pitch, 0.05, 1.0)
     out = common.out_dir(args.out)
     start = time.perf_counter()
-    res = heldout_search(desc, pitch=args.pitch, map_cases=_mapper(args))
+    if args.sample < -1:
+        from paramotion.errors import UserError
+        raise UserError(f'--sample {args.sample}: must be >= 0, or -1 for all')
+    res = heldout_search(desc, pitch=args.pitch, sample=args.sample, map_cases=_mapper(args))
     res.update({'robot_dimensions_from': desc.source, 'pitch_m': args.pitch,
                 'date_utc': time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime()),
                 'machine': f'{platform.node()} {platform.processor()}',
                 'wall_time_s': time.perf_counter() - start,
-                'command': f'paramotion workspace heldout --pitch {args.pitch} --out {out}'})
+                'command': f'paramotion workspace heldout --pitch {args.pitch} '
+                           f'--sample {args.sample} --out {out}'})
     common.write_outputs(out, trimmed(res))
     s = res['summary']
-    print(f'{s["candidates"]:,} candidates (edge anchors, pitch {args.pitch} m, held at home); '
+    st = res['stats']
+    print(f'{st["candidates_total"]:,} candidates (edge anchors, pitch {args.pitch} m, held at '
+          f'home), {st["near_table2_screen"]} near Table II, {st["sampled_others"]} others '
+          f'sampled; of these {s["candidates"]:,} evaluated: '
           f'Fig. 7 limit shrinking with r_x: {s["fig7_shrinks"]:,}, set by cable-body contact: '
           f'{s["fig7_shrinks_by_cable_body"]:,}; workpiece share 60 +- 5 % and gap 0.5 +- 0.1 m '
           f'at {" x ".join("1 1 0.5".split())} m: {s["workpiece_60_at_default_size"]:,}; '
