@@ -1,0 +1,100 @@
+"""Causal tests of the paper planner in the ROS-free loop: suppress or inject one sensed event
+and the hierarchical decomposition graph, and what the robot covers, change as Algorithm 1
+says they must. Worlds are small (seconds of wall time each)."""
+import math
+
+import numpy as np
+import pytest
+
+from coverage_pkg.algorithm1 import PaperConfig
+from coverage_pkg.kinematic import run_kinematic
+from coverage_pkg.world import world_from_dict
+
+# Two 8 x 8 m rooms joined by a 1.4 m wide corridor; the robot starts in the left one.
+DOOR_ROOMS = {'name': 'door_rooms', 'boundary': [
+    [0, 0], [8, 0], [8, 3.3], [12, 3.3], [12, 0], [20, 0], [20, 8], [12, 8], [12, 4.7],
+    [8, 4.7], [8, 8], [0, 8]], 'obstacles': [], 'start': [4, 4]}
+CORRIDOR_CUSP = (6.1, 4.0)     # where D = delta on the corridor's GVD, in the left room
+ROOM = {'name': 'room', 'boundary': [[0, 0], [12, 0], [12, 8], [0, 8]], 'obstacles': [],
+        'start': [6, 4]}
+# A hall with a 2 x 2 m pillar: its leftmost side is a split critical point of h = x.
+ISLAND = {'name': 'island_hall', 'boundary': [[0, 0], [18, 0], [18, 12], [0, 12]],
+          'obstacles': [[[8, 5], [10, 5], [10, 7], [8, 7]]], 'start': [3, 3]}
+# A T-shaped hall of 1.6 m corridors; the robot starts at the foot of the stem.
+T_HALL = {'name': 't_hall', 'boundary': [[0, 6], [6.2, 6], [6.2, 0], [7.8, 0], [7.8, 6],
+                                         [14, 6], [14, 7.6], [0, 7.6]],
+          'obstacles': [], 'start': [7, 0.8]}
+
+
+def _run(world, config=None, event_filter=None, injected=(), max_time=600):
+    def hook(t, planner, cmd):
+        if t == 0.0:
+            planner.event_filter = event_filter
+            planner.injected.extend(injected)
+    return run_kinematic(world_from_dict(world), config or PaperConfig(), max_time=max_time,
+                         on_step=hook)
+
+
+def _near(path, xy):
+    p = np.asarray(path)
+    return float(np.min(np.hypot(p[:, 0] - xy[0], p[:, 1] - xy[1])))
+
+
+def test_suppressing_the_corridor_cusp_leaves_the_node_behind_it_uncreated():
+    full = _run(DOOR_ROOMS)
+    cut = _run(DOOR_ROOMS, event_filter=lambda kind, xy: not (
+        kind == 'cusp' and math.dist(xy, CORRIDOR_CUSP) < 1.5))
+    assert full['state'] == 'done' and full['covered_fraction'] >= 0.99
+    assert sum(n.kind == 'vast' for n in full['planner'].nodes) == 2
+    # Without that one cusp: no narrow node at the corridor, no vast node beyond it, and the
+    # right room is never seen, although the run ends 'done' for what it discovered.
+    p = cut['planner']
+    assert cut['state'] == 'done'
+    assert not any(math.dist(n.anchor, CORRIDOR_CUSP) < 1.5 for n in p.nodes)
+    assert [n.kind for n in p.nodes].count('vast') == 1
+    assert max(x for x, _ in cut['path']) < 8.0
+    assert cut['covered_fraction'] < 0.55
+
+
+def test_an_injected_cusp_creates_a_node_and_an_edge_and_the_robot_goes_there():
+    target = (8.0, 4.0)
+    plain = _run(ROOM)
+    assert _near(plain['path'], target) > 1.5        # not a place the robot goes by itself
+    r = _run(ROOM, injected=[(5.0, 'cusp', target)])
+    p = r['planner']
+    idx = next(i for i, e in enumerate(p.events) if e[1] == 'cusp' and e[4] == 'injected')
+    node = next(n for n in p.nodes if n.created_by == idx)
+    assert node.kind == 'narrow' and node.anchor == target
+    assert (0, node.id, target) in p.edges           # the vast start node to the new one
+    assert node.covered and _near(r['path'], target) < 0.3
+
+
+def test_suppressing_the_pillar_critical_point_leaves_the_morse_cell_unsplit():
+    full = _run(ISLAND)
+    vast = full['planner'].nodes[0]
+    split = [c for c in vast.critical if c[2] == 'split']
+    assert len(split) == 1 and math.dist(split[0][:2], (8.0, 6.0)) < 1.0
+    assert len(vast.cells) >= 3                       # closed at the split, two successors
+    assert all(c.opened_by == split[0][3] for c in vast.cells[1:3])
+    assert len(vast.circuits) == 2                    # the pillar's boundary is followed too
+    assert full['covered_fraction'] >= 0.99
+    cut = _run(ISLAND, event_filter=lambda kind, xy: not (
+        kind == 'critical' and math.dist(xy, (8.0, 6.0)) < 1.6))
+    vast = cut['planner'].nodes[0]
+    assert not [c for c in vast.critical if c[2] == 'split']
+    assert len(vast.cells) == 1 and len(vast.circuits) == 1
+    assert cut['covered_fraction'] < 0.96
+
+
+@pytest.mark.parametrize('without, both_ends', [((), True), (('meet',), False)])
+def test_the_t_junction_meet_point_makes_the_robot_trace_both_branches(without, both_ends):
+    r = _run(T_HALL, PaperConfig(without=without))
+    p = r['planner']
+    xs = [x for x, _ in r['path']]
+    reached = (min(xs) < 2.0, max(xs) > 12.0)
+    meets = [e for e in p.events if e[1] == 'meet']
+    if both_ends:
+        assert any(math.dist(e[2:4], (7.0, 6.8)) < 0.8 for e in meets)
+        assert reached == (True, True) and r['covered_fraction'] >= 0.99
+    else:
+        assert not meets and sum(reached) == 1 and r['covered_fraction'] < 0.85
