@@ -20,7 +20,7 @@ SUBCOMMAND_MODULES = [
     'cable_robot_pkg.cdrpm.cli',         # paramotion workspace ...
     'voronoi_pkg.cli',                    # paramotion voronoi ...
     'paramotion.launch',                  # paramotion launch FILE|NAME [name:=value ...]
-    'paramotion.demo',                    # paramotion demo (README command 1)
+    'coverage_pkg.demo',                  # paramotion demo (README command 1)
     'paramotion.bench',                   # paramotion bench [--json]
     'paramotion.report',                  # paramotion report [--only PART] [--quick]
 ]

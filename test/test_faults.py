@@ -86,7 +86,7 @@ def test_sonar_killed_planner_stops_and_says_why_then_resumes_on_respawn(tmp_pat
     from sensor_msgs.msg import LaserScan
     from std_msgs.msg import Float64
 
-    from paramotion.demo import demo_world
+    from coverage_pkg.demo import demo_world
     from paramotion.qos import LATCHED_QOS, SENSOR_QOS, STATE_QOS
     world = str(demo_world())
     # sonar_timeout 0.4 s + the planner's 0.1 s check period = stop within 0.5 s of sim time.

@@ -181,7 +181,7 @@ def test_demo_runs_the_coverage_processes_and_writes_its_outputs(tmp_path):
     that value; the final fraction is later by up to 2 s of sim time)."""
     import json
 
-    from paramotion.demo import run_demo
+    from coverage_pkg.demo import run_demo
     out = tmp_path / 'demo'
     r = run_demo(out, rtf=4.0, max_wall=12.0, echo=lambda line: None)
     assert r['outcome'] == 'stopped_at_wall_limit'

@@ -19,6 +19,8 @@ import threading
 import time
 from pathlib import Path
 
+from coverage_pkg.algorithm1 import parse_without
+from coverage_pkg.scenario import add_planner_args
 from paramotion.errors import UserError
 from paramotion.scenario_io import add_output_args, output_dir, write_json
 
@@ -126,8 +128,10 @@ def demo_world():
         'demo_rooms.json')
 
 
-def run_demo(out, rtf=2.0, max_wall=240.0, world=None, overwrite=False, echo=print):
-    """Launch, watch, stop, evaluate from the bag; returns the result dict."""
+def run_demo(out, rtf=2.0, max_wall=240.0, world=None, overwrite=False, echo=print,
+             planner=None, without=()):
+    """Launch, watch, stop, evaluate from the bag; returns the result dict. ``planner``
+    (default: the launch file's) and ``without`` become the launch arguments."""
     from coverage_pkg.scenario import _shift_graph
     from coverage_pkg.world import load_world
     from paramotion import launch_xml
@@ -137,10 +141,15 @@ def run_demo(out, rtf=2.0, max_wall=240.0, world=None, overwrite=False, echo=pri
     with output_dir(out, overwrite) as tmp:
         args = {'record': True, 'bag': str(tmp / 'bag'), 'real_time_factor': float(rtf),
                 'world': str(world or demo_world())}
+        if planner is not None:
+            args['planner'] = planner
+        if without:
+            args['without'] = ','.join(parse_without(without))
         desc = launch_xml.load('coverage', args)
         sim = desc.node('coverage_sim').params
         world_path, radius = sim['world'], float(sim['radius'])
         delta = float(desc.node('coverage_monitor').params['delta'])
+        planner_name = desc.node('coverage_planner').params['planner']
         world_obj = load_world(world_path, radius=radius)
         launcher = Launcher(desc, log_dir=tmp / 'logs',
                             echo=lambda line: None).prepare()
@@ -168,7 +177,8 @@ def run_demo(out, rtf=2.0, max_wall=240.0, world=None, overwrite=False, echo=pri
         result = {
             'mode': 'processes (paramotion launch coverage)',
             'world': world_path, 'world_name': world_obj.name, 'radius_m': radius,
-            'detector_range_m': delta, 'real_time_factor': rtf,
+            'detector_range_m': delta, 'real_time_factor': rtf, 'planner': planner_name,
+            'without': list(parse_without(without)),
             'outcome': 'complete' if state == 'done' else (
                 state if state in END_STATES else 'stopped_at_wall_limit'),
             'planner_state': state, 'planner_message': seen['message'],
@@ -185,7 +195,8 @@ def run_demo(out, rtf=2.0, max_wall=240.0, world=None, overwrite=False, echo=pri
         }
         write_json(tmp / 'result.json', result)
         from coverage_pkg.figure import render_coverage
-        title = (f"{world_obj.name}, one process per node at {rtf:g}x: path "
+        title = (f"{world_obj.name}, {planner_name} planner, one process per node at {rtf:g}x: "
+                 f"path "
                  f"{ev['path_length_m']:.1f} m, covered {100 * ev['fraction']:.2f}% of CVS, "
                  f"{result['outcome']}")
         render_coverage(tmp / 'coverage.png', world_obj, ev['path'].tolist(), graph, None,
@@ -200,9 +211,13 @@ def _run(args):
         raise UserError(f'--max-wall {args.max_wall}: must be a positive number of seconds')
     if args.world and not os.path.isfile(args.world):
         raise UserError(f'--world {args.world}: no such file')
-    r = run_demo(args.out, args.rtf, args.max_wall, args.world, args.overwrite)
+    if args.without and args.planner != 'paper':
+        raise UserError('--without: applies to --planner paper only')
+    r = run_demo(args.out, args.rtf, args.max_wall, args.world, args.overwrite,
+                 planner=args.planner, without=args.without)
     out = Path(args.out)
-    print(f"coverage {r['world_name']} (one process per node): {r['outcome']} after "
+    print(f"coverage {r['world_name']} ({r['planner']} planner, one process per node): "
+          f"{r['outcome']} after "
           f"{r['sim_time_s']:.1f} s sim time in {r['wall_time_s']:.1f} s wall")
     print(f"covered {100 * r['covered_fraction_of_cvs']:.2f}% of CVS "
           f"({r['cvs_area_m2']:.1f} m^2); path {r['path_length_m']:.1f} m (lower bound "
@@ -228,4 +243,5 @@ def register(subparsers):
                         help='stop after this many wall seconds if not done (default 240)')
     parser.add_argument('--world', default=None,
                         help='world JSON (default: the packaged demo_rooms)')
+    add_planner_args(parser)
     parser.set_defaults(func=_run)
