@@ -117,10 +117,13 @@ def equilibrium(cfg, L0, EA, w, start) -> np.ndarray:
     return x
 
 
-def errors(cfg=None, EA=None, w=0.0, model='elastic', ki_dt=0.5, iterations=60) -> dict:
+def errors(cfg=None, EA=None, w=0.0, model='elastic', ki_dt=1.0, iterations=60,
+           tol=1e-6) -> dict:
     """Trolley position error (m) at the track's first target, open loop and under terminal
     feedback, for a plant with stiffness ``EA`` and cable weight ``w`` (N/m) and winch lengths
-    from ``model`` (``'rigid'``: L0 = L, ``'elastic'``: the controller's cable IK)."""
+    from ``model`` (``'rigid'``: L0 = L, ``'elastic'``: the controller's cable IK). Terminal
+    feedback runs ``iterations`` integral steps at most, stopping once the error is below
+    ``tol`` (m)."""
     cfg = cfg or load_config()
     EA = float(cfg.raw['cables']['EA']) if EA is None else float(EA)
     feed_p, feed_R = cfg.track.pose(0.0)
@@ -131,6 +134,8 @@ def errors(cfg=None, EA=None, w=0.0, model='elastic', ki_dt=0.5, iterations=60) 
     open_loop = equilibrium(cfg, L0, EA, w, target)
     x = open_loop
     for _ in range(iterations):           # terminal feedback: integral on the length error
+        if np.linalg.norm(x - target) < tol:
+            break
         L0 = L0 + ki_dt * (lengths - cfg.cables.lengths(x, np.eye(3)))
         x = equilibrium(cfg, L0, EA, w, x)
     return {'open_loop_m': float(np.linalg.norm(open_loop - target)),

@@ -1,13 +1,13 @@
 """``paramotion fast``: the FAST feed-support graph headless on sim time; sweep and benchmark.
 
 - ``paramotion fast [--config F] [--duration 60] [--wind 1.0] [--latency 0.02]
-  [--isolation on|off] --out DIR``: runs the graph (simulator, tracker, trajectory, cable PID,
+  [--isolation on|off] [--isolation-mode MODE] [--without NAME]... --out DIR``:
+  runs the graph (simulator, tracker, trajectory, cable PID,
   isolation) in one executor, lock-step, recording ``DIR/bag/``; then runs the same wind with
   isolation the other way round (no bag) for comparison; writes ``DIR/result.json`` and
   ``DIR/fast.png``.
-- ``paramotion fast sweep --out DIR``: feed RMS against tracker latency (0-100 ms) for the
-  naive terminal-feedback loop and the shipped predictive controller; ``DIR/sweep.json`` and
-  ``DIR/latency_sweep.png``.
+- ``paramotion fast sweep --out DIR``: feed RMS against tracker latency (0-100 ms) for each
+  isolation mode (lu, cheng, predictive); ``DIR/sweep.json`` and ``DIR/latency_sweep.png``.
 - ``paramotion fast bench``: real-time factor of the whole graph and controller update times
   (medians).
 
@@ -376,7 +376,7 @@ def _sweep(args):
         raise UserError(f'--latencies {args.latencies!r}: each must be in [0, 0.2] s')
     cases = [{'mode': mode, 'latency_s': lat, 'duration_s': args.duration,
               'config': args.config, 'wind': args.wind, 'settle_s': args.settle}
-             for mode in ('naive', 'predictive') for lat in latencies]
+             for mode in ISOLATION_MODES for lat in latencies]
     with output_dir(args.out, args.overwrite) as tmp:
         rows = run_tasks(sweep_case, cases, desc='fast sweep', **run_args(args))
         for row in rows:
@@ -403,12 +403,14 @@ def _plot_sweep(path, rows, wind):
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
     fig, ax = plt.subplots(figsize=(8, 5))
-    for mode, color in (('naive', 'tab:red'), ('predictive', 'tab:blue')):
+    labels = {'lu': 'lu: PID on terminal feedback (Lu et al.)',
+              'cheng': 'cheng: base prediction + leg PD (Cheng et al.)',
+              'predictive': 'predictive: fused, scheduled prediction + trim (ours)'}
+    for mode, color in (('lu', 'tab:red'), ('cheng', 'tab:green'), ('predictive', 'tab:blue')):
         r = [x for x in rows if x['mode'] == mode]
         lat = [1000 * x['latency_s'] for x in r]
         rms = [x['feed_rms_position_mm'] for x in r]
-        label = 'naive terminal-feedback PI' if mode == 'naive' else \
-            'shipped: base prediction + trim (Cheng et al.)'
+        label = labels[mode]
         ax.plot(lat, rms, 'o-', color=color, label=label)
         bad = [(a, b) for a, b, x in zip(lat, rms, r) if x['unstable']]
         if bad:
@@ -528,7 +530,7 @@ def register(subparsers):
                         'fast.png); required for a run')
     parser.add_argument('--overwrite', action='store_true', help='replace --out if it exists')
     sub = parser.add_subparsers(dest='fast_command', metavar='SUBCOMMAND')
-    sweep = sub.add_parser('sweep', help='feed RMS vs tracker latency, naive vs shipped')
+    sweep = sub.add_parser('sweep', help='feed RMS vs tracker latency, per isolation mode')
     common(sweep, 15.0)
     sweep.add_argument('--latencies', default='0,0.01,0.02,0.03,0.04,0.05,0.06,0.07,0.08,'
                        '0.09,0.1', help='comma-separated latencies in s (default 0..0.1)')
