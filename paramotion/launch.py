@@ -6,10 +6,13 @@ that :mod:`paramotion.launch_xml` reads (``launch_ros`` is not installable here)
 ``<node>`` through its installed executable (the console script ``ros2 run`` would run) as
 ``EXEC --ros-args -r __node:=NAME -p k:=v -r from:=to``, prefixes every line a process prints
 with ``[EXEC-N]``, and on Ctrl-C (SIGINT) or SIGTERM interrupts every process, escalating to
-SIGTERM and then SIGKILL after timeouts. A node that dies stops the launch with a non-zero exit
-naming it, unless it has ``respawn="true"`` (restarted after ``respawn_delay`` seconds).
-Before anything starts, a missing executable or a parameter the node does not declare is
-refused with one line.
+SIGTERM and then SIGKILL after timeouts. As under ``ros2 launch``, the node processes share the
+launcher's process group, so a terminal Ctrl-C reaches each node twice (from the terminal and
+from the launcher); every process's exit is reported (``process has finished cleanly`` or
+``process has died [..., exit code N]``) and a node that does not exit 0 when stopped makes the
+launch exit 1. A node that dies stops the launch with a non-zero exit naming it, unless it has
+``respawn="true"`` (restarted after ``respawn_delay`` seconds). Before anything starts, a
+missing executable or a parameter the node does not declare is refused with one line.
 """
 import importlib
 import inspect
@@ -176,9 +179,10 @@ def graph_from_launch(graph, name, launch_args=None, extra_params=None):
 class _Proc:
     """One launched node process (restarted in place when it respawns)."""
 
-    def __init__(self, action, label, cmd, env, echo, log_dir):
+    def __init__(self, action, label, cmd, env, echo, log_dir, own_session=False):
         self.action, self.label, self.cmd, self.env = action, label, cmd, env
         self.echo = echo
+        self.own_session = own_session
         self.log = open(Path(log_dir) / f'{label}.log', 'a') if log_dir else None
         self.popen = None
         self.respawn_at = None
@@ -188,7 +192,8 @@ class _Proc:
     def start(self):
         self.handled = False
         self.popen = subprocess.Popen(self.cmd, env=self.env, stdout=subprocess.PIPE,
-                                      stderr=subprocess.PIPE, start_new_session=True)
+                                      stderr=subprocess.PIPE,
+                                      start_new_session=self.own_session)
         self.threads = [threading.Thread(target=self._pump, args=(stream, show), daemon=True)
                         for stream, show in ((self.popen.stdout,
                                               self.action.output in ('screen', 'both')),
@@ -211,11 +216,25 @@ class _Proc:
         return self.popen is not None and self.popen.poll() is None
 
     def signal(self, sig):
+        """Send ``sig`` to this node's process (its whole session if it has one of its own)."""
         if self.running():
             try:
-                os.killpg(self.popen.pid, sig)
+                if self.own_session:
+                    os.killpg(self.popen.pid, sig)
+                else:
+                    self.popen.send_signal(sig)
             except ProcessLookupError:
                 pass
+
+    def report_exit(self):
+        """Say how the process ended, as ros2 launch does."""
+        code = self.popen.returncode
+        if code == 0:
+            self.echo(f'[INFO] [{self.label}]: process has finished cleanly '
+                      f'[pid {self.popen.pid}]')
+        else:
+            self.echo(f'[ERROR] [{self.label}]: process has died [pid {self.popen.pid}, exit '
+                      f"code {code}, cmd '{' '.join(self.cmd)}']")
 
     def join_output(self, timeout=2.0):
         for t in self.threads:
@@ -228,11 +247,14 @@ class Launcher:
     ``start()`` checks everything first (executables, parameters), then starts the nodes in
     file order; ``poll()`` handles exits (respawn, or failure naming the node) and returns
     False once the launch is over; ``shutdown()`` interrupts and reaps every process.
-    ``failed`` names the node that died, if one did.
+    ``failed`` names the node that died, if one did; ``unclean`` lists the nodes that did not
+    exit 0 when stopped. With ``own_sessions`` each node runs in a session of its own (a
+    terminal Ctrl-C then reaches only the launcher); by default they share the launcher's
+    process group, as under ``ros2 launch``.
     """
 
     def __init__(self, desc, echo=None, log_dir=None, sigterm_timeout=5.0, sigkill_timeout=5.0,
-                 env=None):
+                 env=None, own_sessions=False):
         self.desc = desc
         self.echo_lock = threading.Lock()
         self._echo = echo or self._print
@@ -241,7 +263,9 @@ class Launcher:
         self.env = {**os.environ, **(env or {}), 'PYTHONUNBUFFERED': '1'}
         self.procs = []
         self.failed = None
+        self.unclean = []
         self.stopping = False
+        self.own_sessions = own_sessions
 
     def _print(self, line):
         print(line, flush=True)
@@ -266,7 +290,8 @@ class Launcher:
             base = Path(action.executable).name
             counts[base] = counts.get(base, 0) + 1
             self.procs.append(_Proc(action, f'{base}-{k}', node_command(action, path),
-                                    {**self.env, **action.env}, self.echo, self.log_dir))
+                                    {**self.env, **action.env}, self.echo, self.log_dir,
+                                    own_session=self.own_sessions))
         return self
 
     def start(self):
@@ -298,12 +323,7 @@ class Launcher:
             p.join_output()
             if self.stopping:
                 continue
-            if code == 0:
-                self.echo(f'[INFO] [{p.label}]: process has finished cleanly '
-                          f'[pid {p.popen.pid}]')
-            else:
-                self.echo(f'[ERROR] [{p.label}]: process has died [pid {p.popen.pid}, exit '
-                          f"code {code}, cmd '{' '.join(p.cmd)}']")
+            p.report_exit()
             if p.action.respawn:
                 p.respawn_at = now + p.action.respawn_delay
                 alive = True
@@ -313,8 +333,9 @@ class Launcher:
 
     def shutdown(self):
         """SIGINT every process; SIGTERM after ``sigterm_timeout``, SIGKILL after
-        ``sigkill_timeout`` more. Returns {label: exit code}."""
+        ``sigkill_timeout`` more. Reports each exit; returns {label: exit code}."""
         self.stopping = True
+        stopped = [p for p in self.procs if p.popen is not None and not p.handled]
         for sig, timeout in ((signal.SIGINT, self.sigterm_timeout),
                              (signal.SIGTERM, self.sigkill_timeout), (signal.SIGKILL, 10.0)):
             running = [p for p in self.procs if p.running()]
@@ -334,22 +355,32 @@ class Launcher:
                 p.popen.wait()
                 p.join_output()
                 codes[p.label] = p.popen.returncode
+                if p in stopped:
+                    p.handled = True
+                    p.report_exit()
+                    if p.popen.returncode != 0:
+                        self.unclean.append(p)
             if p.log is not None:
                 p.log.close()
         return codes
 
     def failure_message(self):
         p = self.failed
-        if p is None:
-            return None
-        return (f"node '{p.action.label}' ({p.label}) died with exit code "
-                f'{p.popen.returncode}')
+        if p is not None:
+            return (f"node '{p.action.label}' ({p.label}) died with exit code "
+                    f'{p.popen.returncode}')
+        if self.unclean:
+            return 'stopped, but not cleanly: ' + ', '.join(
+                f"node '{p.action.label}' ({p.label}) exited with code {p.popen.returncode}"
+                for p in self.unclean)
+        return None
 
 
 def run(desc, log_dir=None, period=0.05):
     """``paramotion launch``: start, watch until Ctrl-C/SIGTERM or a node dies, stop.
 
-    Returns 0 after a requested stop, 1 if a node died (the message names it)."""
+    Returns 0 after a requested stop where every node exited 0, 1 if a node died or did not
+    stop cleanly (the message names it)."""
     launcher = Launcher(desc, log_dir=log_dir).prepare()
     stop = threading.Event()
     previous = {}

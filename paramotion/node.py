@@ -8,7 +8,9 @@ allowed range. A node never starts half-configured: a bad start-up value raises
 :class:`paramotion.errors.ParameterError` from the constructor.
 
 ``run_node`` is the standard Jazzy ``main()`` body so that every executable behaves the same on
-Ctrl-C, on ``ros2 lifecycle``-less external shutdown and on a bad parameter.
+Ctrl-C, on ``ros2 lifecycle``-less external shutdown and on a bad parameter. It exits 0 without
+a traceback however many SIGINT/SIGTERM arrive (a terminal Ctrl-C under ``ros2 launch`` sends
+two): see :mod:`paramotion.shutdown`.
 """
 import math
 import sys
@@ -30,6 +32,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from paramotion.errors import ParameterError, UserError
+from paramotion.shutdown import ShutdownSignals, exit_now
 
 _INT_LIMIT = 2 ** 62
 
@@ -221,14 +224,29 @@ def overrides_from_dict(values):
 
 
 def run_node(node_cls, args=None):
-    """Standard Jazzy ``main()`` body: init, spin, clean shutdown; one-line parameter errors."""
-    rclpy.init(args=args)
+    """Standard Jazzy ``main()`` body: init, spin, clean shutdown; one-line parameter errors.
+
+    The first SIGINT or SIGTERM stops the node; later ones (a terminal Ctrl-C under launch
+    sends two) are absorbed, so clean-up (``destroy_node``: a recorder closing its bag) always
+    finishes, and the process then exits 0 at once (:func:`paramotion.shutdown.exit_now`).
+    """
+    signals = ShutdownSignals().install()   # before rclpy.init: rclpy's handler chains to it
+    try:
+        _run_node(node_cls, args, signals)
+    finally:
+        signals.finish()
+    exit_now(0)
+
+
+def _run_node(node_cls, args, signals):
     node = watchdog = None
     try:
+        rclpy.init(args=args)
         node = node_cls()
         # A node on sim time in its own process warns once if its simulator stops.
         from paramotion.clock_watchdog import attach
         watchdog = attach(node)
+        signals.spinning()
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass

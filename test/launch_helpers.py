@@ -1,7 +1,8 @@
 """Run ``paramotion launch`` in a subprocess and watch its graph from the test over DDS.
 
 The launcher and its nodes inherit the test run's private ``ROS_DOMAIN_ID`` (conftest.py). The
-watcher is a node in its own Context; every wait polls a condition with a deadline (no fixed
+launcher runs in a session of its own and its nodes share its process group, as in a terminal.
+The watcher is a node in its own Context; every wait polls a condition with a deadline (no fixed
 sleeps), and the launch is always stopped with Ctrl-C (SIGINT), escalating if it hangs, and any
 node process left behind is killed by pid.
 """
@@ -79,10 +80,18 @@ class Launch:
     def node_pids(self):
         return [int(p) for p in re.findall(r'process started with pid \[(\d+)\]', self.output())]
 
-    def stop(self, timeout=30.0):
-        """Ctrl-C the launcher; returns its exit code. Escalates and reaps if it hangs."""
+    def stop(self, timeout=30.0, group=True):
+        """Ctrl-C; returns the launcher's exit code. Escalates and reaps if it hangs.
+
+        ``group``: SIGINT to the whole process group, launcher and nodes, as a terminal's
+        Ctrl-C does (each node then gets it twice: from the terminal and from the launcher);
+        otherwise to the launcher alone, which forwards it.
+        """
         if self.proc.poll() is None:
-            os.killpg(self.proc.pid, signal.SIGINT)
+            if group:
+                os.killpg(self.proc.pid, signal.SIGINT)
+            else:
+                self.proc.send_signal(signal.SIGINT)
             try:
                 self.proc.wait(timeout)
             except subprocess.TimeoutExpired:
@@ -104,7 +113,7 @@ class Launch:
     def kill_leftovers(self):
         for pid in self.leftover_pids():
             try:
-                os.killpg(pid, signal.SIGKILL)
+                os.kill(pid, signal.SIGKILL)
             except ProcessLookupError:
                 pass
 

@@ -227,6 +227,7 @@ def test_recorder_of_the_coverage_graph_killed_with_sigkill_leaves_readable_chun
     assert times == sorted(times) and times[-1] > 2_000_000_000
     reindex(bag)
     assert (bag / 'metadata.yaml').is_file()   # rosbag2 tools can open it again
+    assert bag_info(bag).complete and bag_info(bag).message_count >= len(msgs)
 
 
 def test_fast_tracker_killed_controllers_hold_then_recover_on_restart(tmp_path):

@@ -122,39 +122,64 @@ def _info(args):
     return 0
 
 
-def reindex(bag):
-    """Write ``metadata.yaml`` for a bag from what its .mcap file holds (like ros2 bag reindex).
-
-    Used for bags whose recorder was killed: counts cover the complete chunks only.
-    """
-    info = bag_info(bag)
-    topics = []
+def metadata_yaml(topics, message_count, start_ns, end_ns, file_name):
+    """rosbag2 ``metadata.yaml`` text (version 9, one MCAP file) for ``topics`` (TopicInfo)."""
     from paramotion.bag.writer import typestore
     store = typestore()
-    for name in sorted(info.topics):
-        t = info.topics[name]
+    entries = []
+    for name in sorted(topics):
+        t = topics[name]
         try:
             rihs = store.hash_rihs01(t.msgtype)
         except Exception:
             rihs = ''
-        topics.append({'topic_metadata': {
+        entries.append({'topic_metadata': {
             'name': name, 'type': t.msgtype, 'serialization_format': 'cdr',
             'offered_qos_profiles': yaml.safe_load(t.offered_qos_profiles or '[]') or [],
             'type_description_hash': rihs}, 'message_count': t.count})
-    duration = max(0, info.end_ns - info.start_ns)
+    duration = max(0, end_ns - start_ns)
     doc = {'rosbag2_bagfile_information': {
         'version': 9, 'storage_identifier': 'mcap',
         'duration': {'nanoseconds': duration},
-        'starting_time': {'nanoseconds_since_epoch': info.start_ns},
-        'message_count': info.message_count, 'topics_with_message_count': topics,
+        'starting_time': {'nanoseconds_since_epoch': start_ns},
+        'message_count': message_count, 'topics_with_message_count': entries,
         'compression_format': '', 'compression_mode': '',
-        'relative_file_paths': [info.mcap_path.name],
-        'files': [{'path': info.mcap_path.name,
-                   'starting_time': {'nanoseconds_since_epoch': info.start_ns},
+        'relative_file_paths': [file_name],
+        'files': [{'path': file_name,
+                   'starting_time': {'nanoseconds_since_epoch': start_ns},
                    'duration': {'nanoseconds': duration},
-                   'message_count': info.message_count}],
+                   'message_count': message_count}],
         'custom_data': {}, 'ros_distro': 'jazzy'}}
-    (info.path / 'metadata.yaml').write_text(yaml.safe_dump(doc, sort_keys=False))
+    return yaml.safe_dump(doc, sort_keys=False)
+
+
+def reindex(bag):
+    """Make a bag whose recorder was killed complete again (``ros2 bag reindex`` plus ``mcap
+    recover``); returns the :class:`~paramotion.bag.reader.BagInfo` of the result.
+
+    An .mcap file without its footer is rewritten with every message that can still be read
+    (every complete chunk, and the whole messages of a cut-off uncompressed one) and a full
+    summary, so rosbags and Foxglove's readers open it; the original is kept beside it as
+    ``<name>.mcap.truncated``. Then ``metadata.yaml`` is written from what the file holds.
+    """
+    from paramotion.bag.reader import find_mcap
+    from paramotion.bag.recover import is_closed, recover
+    bag_dir, mcap_path = find_mcap(bag)
+    if not is_closed(mcap_path):
+        fresh = mcap_path.with_name(mcap_path.name + '.recovering')
+        fresh.unlink(missing_ok=True)
+        try:
+            recover(mcap_path, fresh, metadata=lambda r: metadata_yaml(
+                r.topics, r.messages, r.start_ns, r.end_ns, mcap_path.name))
+        except BaseException:
+            fresh.unlink(missing_ok=True)
+            raise
+        mcap_path.replace(mcap_path.with_name(mcap_path.name + '.truncated'))
+        fresh.replace(mcap_path)
+    info = bag_info(mcap_path)
+    (bag_dir / 'metadata.yaml').write_text(metadata_yaml(
+        info.topics, info.message_count, info.start_ns, info.end_ns, mcap_path.name))
+    info.has_metadata = True
     return info
 
 
@@ -207,8 +232,10 @@ def register(subparsers):
     info.add_argument('bag', help='bag directory or .mcap file')
     info.set_defaults(func=_info)
 
-    rei = sub.add_parser('reindex', help='rebuild metadata.yaml of an unclosed bag',
-                         description='Rebuild metadata.yaml from the .mcap file.')
+    rei = sub.add_parser('reindex', help='complete a bag whose recorder was killed',
+                         description='Recover every readable message of an unclosed .mcap '
+                         'file into a complete one (the original is kept as '
+                         '<name>.mcap.truncated) and rebuild metadata.yaml from it.')
     rei.add_argument('bag', help='bag directory')
     rei.set_defaults(func=_reindex)
     return parser

@@ -1,0 +1,170 @@
+"""A node process stops cleanly however many SIGINT/SIGTERM arrive, and the recorder always
+finishes its bag.
+
+A terminal Ctrl-C under ``ros2 launch`` sends every node SIGINT twice (the terminal's and the
+one launch forwards), and launch escalates to SIGTERM. Each test starts a real node process,
+waits until it is up on the graph, then sends a sequence of signals (or keeps sending them
+every few milliseconds until the process is gone, so that some land during clean-up) and
+checks exit code 0 and no traceback.
+"""
+import os
+import signal
+import time
+from pathlib import Path
+
+import pytest
+import rclpy
+import yaml
+from rclpy.executors import SingleThreadedExecutor
+from std_msgs.msg import String
+
+from paramotion.bag.reader import bag_info, read_messages
+from paramotion.launch import NodeProcess, wait_until
+
+pytestmark = pytest.mark.slow
+
+WORLD = Path(__file__).resolve().parents[1] / 'coverage_pkg' / 'worlds' / 'two_rooms.json'
+INT, TERM = signal.SIGINT, signal.SIGTERM
+
+
+class Probe:
+    """A node in its own context that looks at the graph (and publishes, for the recorder)."""
+
+    def __init__(self):
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context)
+        self.node = rclpy.create_node('shutdown_probe', context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+
+    def close(self):
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+@pytest.fixture
+def probe():
+    p = Probe()
+    yield p
+    p.close()
+
+
+def send(proc, sequence, gap=0.005):
+    """Send the signals of ``sequence`` ``gap`` seconds apart (as long as the process runs)."""
+    for sig in sequence:
+        if proc.poll() is not None:
+            break
+        os.kill(proc.pid, sig)
+        time.sleep(gap)
+
+
+def storm(proc, period=0.005, timeout=30.0):
+    """SIGINT and SIGTERM in turn every ``period`` s until the process is gone; returns how
+    many were sent."""
+    sent, end = 0, time.monotonic() + timeout
+    while proc.poll() is None and time.monotonic() < end:
+        os.kill(proc.pid, (INT, TERM)[sent % 2])
+        sent += 1
+        time.sleep(period)
+    return sent
+
+
+def finished(node_proc, log, timeout=30.0):
+    """Exit code of ``node_proc`` (killed if it hangs) and its output."""
+    try:
+        node_proc.proc.wait(timeout)
+    except Exception:
+        node_proc.kill()
+    node_proc.kill()   # closes the log
+    return node_proc.proc.returncode, Path(log).read_text(errors='replace')
+
+
+def assert_clean(code, out):
+    assert code == 0, out[-3000:]
+    assert 'Traceback' not in out and 'KeyboardInterrupt' not in out, out[-3000:]
+
+
+@pytest.mark.parametrize('sequence', [(INT, INT), (INT, TERM, INT), (TERM, TERM)],
+                         ids=['terminal-ctrl-c', 'int-term-int', 'sigterm-twice'])
+def test_node_exits_0_without_traceback_on_repeated_signals(tmp_path, probe, sequence):
+    log = tmp_path / 'controller.log'
+    node = NodeProcess('paramotion.smoke.controller_node', log_path=log)
+    try:
+        assert wait_until(lambda: node.proc.poll() is not None or 'smoke_controller' in
+                          probe.node.get_node_names(), 60.0), log.read_text()
+        time.sleep(0.5)
+        send(node.proc, sequence)
+        code, out = finished(node, log)
+    finally:
+        node.kill()
+    assert_clean(code, out)
+
+
+def test_simulator_exits_0_under_a_storm_of_signals(tmp_path, probe):
+    """The coverage simulator (PyBullet, /clock, watchdog thread): signals keep coming during
+    its whole clean-up."""
+    log = tmp_path / 'sim.log'
+    node = NodeProcess('coverage_pkg.sim_node', params={'world': str(WORLD)}, log_path=log)
+    try:
+        assert wait_until(lambda: node.proc.poll() is not None or
+                          probe.node.count_publishers('/clock') > 0, 60.0), log.read_text()
+        time.sleep(0.5)
+        sent = storm(node.proc)
+        code, out = finished(node, log)
+    finally:
+        node.kill()
+    assert sent >= 2
+    assert_clean(code, out)
+
+
+@pytest.mark.parametrize('how', ['storm', 'sigterm'])
+def test_recorder_finishes_its_bag_however_many_signals_arrive(tmp_path, probe, how):
+    """Every message published (reliable) is in a complete bag (MCAP footer and
+    metadata.yaml) that rosbags and the mcap library open."""
+    from mcap.reader import make_reader
+    from rosbags.highlevel import AnyReader
+    bag = tmp_path / 'bag'
+    log = tmp_path / 'recorder.log'
+    rec = NodeProcess('paramotion.bag.recorder_node', params={
+        'output': str(bag), 'topics': ['/test/chatter'], 'flush_period': 0.2,
+        'use_sim_time': False}, log_path=log)
+    pub = probe.node.create_publisher(String, '/test/chatter', 10)
+    try:
+        assert wait_until(lambda: rec.proc.poll() is not None or
+                          pub.get_subscription_count() > 0, 60.0), log.read_text()
+        time.sleep(1.0)     # the recorder's side of the match settles too
+        sent = 300
+        for i in range(sent):
+            pub.publish(String(data=f'msg {i}'))
+            probe.executor.spin_once(timeout_sec=0.002)
+        # Signal once the recorder has written them all (flushed chunks read back).
+        assert wait_until(lambda: _readable(bag) >= sent, 30.0, period=0.1), _readable(bag)
+        if how == 'storm':
+            signals = storm(rec.proc)
+            assert signals >= 2
+        else:
+            send(rec.proc, (TERM,))
+        code, out = finished(rec, log)
+    finally:
+        rec.kill()
+    assert_clean(code, out)
+    info = bag_info(bag)
+    assert info.complete, info.problem
+    meta = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    assert meta['message_count'] == sent
+    with AnyReader([bag]) as reader:
+        got = [reader.deserialize(raw, c.msgtype).data for c, _, raw in reader.messages()]
+    assert got == [f'msg {i}' for i in range(sent)]
+    with open(next(bag.glob('*.mcap')), 'rb') as f:
+        assert make_reader(f).get_summary().statistics.message_count == sent
+    assert [m.data for m in read_messages(bag)]     # our own reader agrees it is readable
+
+
+def _readable(bag):
+    if not any(Path(bag).glob('*.mcap')):
+        return 0
+    try:
+        return len(read_messages(bag, ['/test/chatter']))
+    except Exception:   # a chunk being written
+        return 0
