@@ -68,6 +68,7 @@ class ClimbMonitor:
         self.k = 0
         self.measures = 0
         self.centering = []
+        self.settled = []          # measurement taken from the second cycle on
         self.trace = {'t': [], 'ring1': [], 'ring2': [], 'steps': [], 'frames': [],
                       'bore_radius': robot.ring_inner_radius}
         self.stats = {'min_ring_clearance': math.inf, 'min_leg_clearance': math.inf,
@@ -92,6 +93,7 @@ class ClimbMonitor:
             pos, rot = self.sim.ring_poses()[ring]
             if ev.ring_on_structure(self.trunk, pos):
                 self.centering.append(ev.centering_error(self.trunk, pos, rot))
+                self.settled.append(self.gait.semicycle >= 2)
             self.trace['steps'].append(pos)
             self.trace['frames'].append((ring, pos, rot))
         self.measures = len(log)
@@ -158,6 +160,9 @@ def _climb_result(trunk_file, trunk, robot, sim, gait, monitor, outcome, start_p
         'centering_error_per_step_m': centering,
         'centering_error_median_m': float(np.median(centering)) if centering else None,
         'centering_error_max_m': float(np.max(centering)) if centering else None,
+        'off_axis_start_m': centering[0] if centering else None,
+        'off_axis_settled_max_m': max((c for c, ok in zip(centering, monitor.settled) if ok),
+                                      default=None),
         'min_ring_clearance_m': stats['min_ring_clearance'],
         'min_leg_clearance_m': stats['min_leg_clearance'],
         'ring_trunk_contacts': sim.contacts,

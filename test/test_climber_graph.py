@@ -32,7 +32,8 @@ def test_graph_climbs_short_curved_trunk_to_the_top(tmp_path):
     centre = np.stack([0.1 * (z / 1.9) ** 2, -0.05 * np.sin(z), z], 1)
     trunk = write_trunk(tmp_path / 'curved.json', centre.tolist(), [[0, 0.25], [1.9, 0.19]])
     result, trace, _ = run_climb(trunk, tmp_path / 'bag', delta=0.1, noise=0.001,
-                                 dropout=0.05, max_time=100)
+                                 dropout=0.05, max_time=100, start_offset=0.02, start_tilt=3.0,
+                                 seed=2)
     assert result['planner_state'] == 'done', result['planner_message']
     assert result['reached_top']
     assert result['ring_trunk_contacts'] == 0
@@ -40,7 +41,8 @@ def test_graph_climbs_short_curved_trunk_to_the_top(tmp_path):
     assert result['clamp_invariant_ok'] and result['interlock_trips'] == 0
     assert result['within_stroke']
     assert result['max_jacobian_condition'] < 30
-    assert result['centering_error_max_m'] < 0.015
+    assert result['off_axis_start_m'] > 0.02             # started off the axis
+    assert result['off_axis_settled_max_m'] < 0.015
     assert result['success']
     info = bag_info(tmp_path / 'bag')
     assert info.complete
@@ -102,6 +104,41 @@ def test_cli_bad_arguments(tmp_path, capsys):
     assert 'no such file' in capsys.readouterr().err
 
 
+def test_cli_start_pose_and_ablation_arguments(tmp_path, capsys):
+    trunk = write_trunk(tmp_path / 'ok.json', [[0, 0, 0], [0, 0, 2]], 0.2)
+    for extra, words in ((['--start-offset', '-0.1'], '--start-offset'),
+                         (['--start-offset', '0.5'], 'at most 0.2 m'),
+                         (['--start-tilt', '40'], 'at most 30 deg')):
+        assert cli_main(['climb', '--trunk', str(trunk), *extra,
+                         '--out', str(tmp_path / 'o')]) == 2
+        err = capsys.readouterr().err.strip()
+        assert words in err and err.count('\n') == 0
+    with pytest.raises(SystemExit):
+        cli_main(['climb', '--trunk', str(trunk), '--without', 'gait'])
+    assert "invalid choice: 'gait'" in capsys.readouterr().err
+    assert not (tmp_path / 'o').exists()
+
+
+def test_sim_starts_off_centre_and_tilted(tmp_path):
+    from climber_pkg.kinematic_model import initial_pose_on_trunk
+    from climber_pkg.sim_node import ClimberSimNode
+    from paramotion.graph import Graph
+    path = write_trunk(tmp_path / 'straight.json', [[0, 0, 0], [0, 0, 3]], 0.2)
+    trunk = Trunk.from_file(path)
+    with Graph() as graph:
+        sim = graph.add(ClimberSimNode, trunk_file=str(path), start_offset=0.03,
+                        start_tilt_deg=5.0, start_seed=4)
+        (p1, r1), (p2, r2) = sim.ring_poses()
+        (q1, s1), (q2, s2) = initial_pose_on_trunk(trunk, ROBOT, 0.4, np.full(6, 0.5), 0.03,
+                                                   math.radians(5.0), 4)
+        np.testing.assert_allclose(p1, q1, atol=2e-3)
+        np.testing.assert_allclose(p2, q2, atol=2e-3)
+        assert math.degrees(math.acos(r1[2, 2])) == pytest.approx(5.0, abs=0.2)
+        assert np.hypot(*p1[:2]) > 0.01                   # off the axis
+        with pytest.raises(ParameterError, match="'start_offset'"):
+            graph.add(ClimberSimNode, name='too_far', trunk_file=str(path), start_offset=0.19)
+
+
 def test_node_parameters_validated():
     from climber_pkg.planner_node import ClimberPlannerNode
     from climber_pkg.ultrasonic_node import ClimberUltrasonicNode
@@ -113,6 +150,13 @@ def test_node_parameters_validated():
             graph.add(ClimberPlannerNode, delta=0.05, delta_min=0.1)
         with pytest.raises(ParameterError, match="'mode'"):
             graph.add(ClimberPlannerNode, mode='fly')
+        with pytest.raises(ParameterError, match="'without'"):
+            graph.add(ClimberPlannerNode, without='correction,gait')
+        with pytest.raises(ParameterError, match="'approach'"):
+            graph.add(ClimberPlannerNode, approach='secant')
+        paper = graph.add(ClimberPlannerNode, name='planner_paper', approach='paper',
+                          without='prediction')
+        assert paper.gait.p.approach == 'paper' and paper.gait.p.without == ('prediction',)
         with pytest.raises(ParameterError, match="'ring'"):
             graph.add(ClimberUltrasonicNode, ring=3, trunk_file='x.json')
         planner = graph.add(ClimberPlannerNode, name='planner_ok')
