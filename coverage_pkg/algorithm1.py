@@ -64,7 +64,7 @@ class PaperConfig:
     slice_cone: float = math.radians(12.0)  # ... as along +-x when a lap reads the slice
     overlap: float = 0.2            # m, laps are 2 delta - overlap apart
     min_run: float = 0.5            # m, a stretch of a lap shorter than this is echo noise
-    same_event: float = 1.0         # m, an event this near a known one is the known one
+    same_event: float = 0.5         # m, an event this near a known one is the known one
     stuck_time: float = 6.0         # s commanded but not moving -> the target is given up
     max_stuck: int = 6              # stuck events in a row before the run stops
     detector: str = 'extended'      # the paper planner is for the extended-range detector
@@ -132,6 +132,7 @@ class Node:
     closed_by: int = None
     covered: bool = False
     given_up: bool = False
+    merged_into: int = None         # vast: the node whose boundary circuit passed its cusp
     circuits: list = field(default_factory=list)    # vast: boundaries to follow at D = delta
     cells: list = field(default_factory=list)       # vast: Morse cells (Reeb graph edges)
     critical: list = field(default_factory=list)    # vast: (x, y, kind, event index)
@@ -147,8 +148,9 @@ class TracedPaths:
     disk the ring saw free). Dijkstra runs only when a transit is planned.
     """
 
-    def __init__(self, clearance: float, step: float = 0.3, bucket: float = 2.0):
-        self.clear, self.step, self.bucket = clearance, step, bucket
+    def __init__(self, clearance: float, step: float = 0.3, bucket: float = 1.5,
+                 hop: float = 1.5):
+        self.clear, self.step, self.bucket, self.hop = clearance, step, bucket, hop
         self.xy, self.d, self.grid = [], [], {}
 
     def add(self, x: float, y: float, d: float) -> None:
@@ -207,11 +209,11 @@ class TracedPaths:
                 if i == dst:
                     break
                 continue
-            reach = max(self.d[i] - self.clear, self.step * 1.5)
+            reach = min(max(self.d[i] - self.clear, self.step * 1.5), self.hop)
             for j in self._near(i, reach):
                 step = math.dist(self.xy[i], self.xy[j])
-                if j == i or (step > min(self.d[i], self.d[j]) - self.clear
-                              and abs(i - j) != 1):
+                if j == i or (step > min(self.d[i], self.d[j], self.hop + self.clear)
+                              - self.clear and abs(i - j) != 1):
                     continue
                 nc = c + step
                 if nc < dist.get(j, math.inf):
@@ -339,8 +341,7 @@ class PaperPlanner:
         known one nearby; else recorded and handed to the subroutine it belongs to."""
         if kind in self.cfg.without or (self.event_filter and not self.event_filter(kind, xy)):
             return None
-        if kind != 'critical' and any(e[1] == kind and math.dist(e[2:4], xy) < self.cfg.same_event
-                                      for e in self.events):
+        if self._known(kind, xy):
             return None
         idx = self._record(t, kind, xy, detail)
         if kind == 'cusp':
@@ -348,6 +349,18 @@ class PaperPlanner:
         elif kind == 'meet':
             self._on_meet(idx, xy)
         return idx
+
+    def _known(self, kind, xy):
+        """An event sensed again. A cusp is known to a vast node only through its own
+        edges: the cusp that ends a narrow cell's GVD edge can lie within a step of the one
+        where a corner's narrow cell meets the same vast cell."""
+        near = self.cfg.same_event
+        n = self.nodes[self.current] if self.current is not None else None
+        if kind == 'critical':
+            return False
+        if kind == 'cusp' and n is not None and n.kind == 'vast':
+            return any(math.dist(c, xy) < near for v, _, c in self.edges if v == n.id)
+        return any(e[1] == kind and math.dist(e[2:4], xy) < near for e in self.events)
 
     def _record(self, t, kind, xy, detail):
         self.events.append((round(float(t), 3), kind, round(float(xy[0]), 3),
@@ -798,6 +811,18 @@ class PaperPlanner:
                 v = v - max(v @ nrm, 0.0) * nrm + np.clip(d - self.det, -1.0, 0.3) * nrm
         return v
 
+    def _same_cell(self, n, trace):
+        """A vast node not yet covered whose cusp lies on this boundary circuit is the cell
+        just followed, reached through another cusp: it is covered with it."""
+        for m in self.nodes:
+            if m is n or m.kind != 'vast' or m.covered or m.id == self.current:
+                continue
+            if any(math.dist(m.anchor, q) < 0.7 for q in trace):
+                m.covered, m.merged_into = True, n.id
+                m.closed_by = self._record(self.t_sweep, 'same_cell', m.anchor,
+                                           f'vast node {m.id} is vast node {n.id}: its cusp '
+                                           'lies on that boundary circuit')
+
     def _follow_velocity(self):
         """Boundary following at D = delta, obstacle on the right: along the tangent of the
         closest obstacle, pulled back to D = delta along its normal."""
@@ -828,9 +853,13 @@ class PaperPlanner:
             self._record(self.t_sweep, 'circuit', self.pose, f'boundary of vast node {n.id}')
         tk['length'] += math.dist(tk['last'], self.pose[:2])
         tk['last'] = self.pose[:2]
+        trace = circ.setdefault('trace', [])
+        if not trace or math.dist(trace[-1], self.pose[:2]) > 0.3:
+            trace.append(self.pose[:2])
         if (tk['length'] > 3.0 and math.dist(tk['origin'], self.pose[:2]) < 0.4) or \
                 tk['length'] > 500.0:
             circ['done'] = True
+            self._same_cell(n, circ['trace'])
             if not n.cells:
                 n.cells.append(MorseCell(0, self.pose[:2], +1, opened_by=circ['opened_by']))
             self.task, self.mode = {}, None
@@ -914,7 +943,8 @@ class PaperPlanner:
         for n in self.nodes:
             nodes.append({
                 'id': n.id, 'type': n.kind, 'kind': n.kind, 'covered': n.covered,
-                'given_up': n.given_up, 'alive': True, 'anchor': list(n.anchor),
+                'given_up': n.given_up, 'merged_into': n.merged_into, 'alive': True,
+                'anchor': list(n.anchor),
                 'centroid': list(n.anchor), 'label_point': list(n.anchor),
                 'created_by_event': n.created_by, 'closed_by_event': n.closed_by,
                 'critical_points': [list(c[:2]) for c in n.critical],
