@@ -25,6 +25,16 @@ SUBCOMMAND_MODULES = [
     'paramotion.report',                  # paramotion report [--only PART] [--quick]
 ]
 
+# Modules providing ``BENCHES`` for ``paramotion bench`` (see paramotion/bench.py), in the
+# order of its table.
+BENCH_MODULES = [
+    'climber_pkg.bench',                  # FK solves/s, climbing graph speed
+    'cable_robot_pkg.cdrpm.bench',        # KNTU workspace poses/s
+    'voronoi_pkg.bench',                  # rho/s, the paper's query
+    'cable_robot_pkg.fast.bench',         # FAST graph speed (one process; across processes)
+    'coverage_pkg.bench',                 # coverage graph speed
+]
+
 
 def build_parser():
     """Build the argument parser with every available subcommand."""

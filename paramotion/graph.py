@@ -11,6 +11,7 @@ same results on a fast or a slow machine.
 import os
 import random
 import time
+from contextlib import contextmanager
 
 import rclpy
 from rclpy.executors import (
@@ -33,6 +34,27 @@ from paramotion.node import overrides_from_dict
 EXECUTORS = ('lockstep', 'single_threaded', 'events')
 DEFAULT_EXECUTOR = 'lockstep'
 
+#: What a Graph does unless told otherwise (``paramotion bench --levers`` switches them one at
+#: a time to measure each): the executor, whether the clock source sets the nodes' time
+#: directly in lock-step, and whether a private graph's nodes skip their parameter services.
+GRAPH_DEFAULTS = {'executor': DEFAULT_EXECUTOR, 'direct_time': True,
+                  'private_without_services': True}
+
+
+@contextmanager
+def graph_defaults(**values):
+    """Temporarily change :data:`GRAPH_DEFAULTS` (for benchmarks comparing them)."""
+    unknown = set(values) - set(GRAPH_DEFAULTS)
+    if unknown:
+        raise ValueError(f'unknown Graph defaults {sorted(unknown)}')
+    saved = dict(GRAPH_DEFAULTS)
+    GRAPH_DEFAULTS.update(values)
+    try:
+        yield
+    finally:
+        GRAPH_DEFAULTS.clear()
+        GRAPH_DEFAULTS.update(saved)
+
 
 def make_executor(kind, context):
     """A new rclpy executor for ``kind`` (one of :data:`EXECUTORS`) on ``context``."""
@@ -41,6 +63,40 @@ def make_executor(kind, context):
     if kind in ('single_threaded', 'lockstep'):
         return SingleThreadedExecutor(context=context)
     raise ValueError(f'executor {kind!r}: expected one of {", ".join(EXECUTORS)}')
+
+
+#: Environment variable choosing the executor of a node run as its own process
+#: (:func:`spin_node`): ``events`` or ``single_threaded``.
+NODE_EXECUTOR_ENV = 'PARAMOTION_EXECUTOR'
+NODE_EXECUTORS = ('events', 'single_threaded')
+DEFAULT_NODE_EXECUTOR = 'events'
+
+
+def node_executor_kind():
+    """The executor :func:`spin_node` uses: ``$PARAMOTION_EXECUTOR`` or the default."""
+    kind = os.environ.get(NODE_EXECUTOR_ENV, '').strip() or DEFAULT_NODE_EXECUTOR
+    if kind not in NODE_EXECUTORS:
+        raise ValueError(f'{NODE_EXECUTOR_ENV}={kind!r}: expected one of '
+                         f'{", ".join(NODE_EXECUTORS)}')
+    return kind
+
+
+def spin_node(node, kind=None):
+    """Spin ``node`` (its own process) until its context shuts down.
+
+    ``events`` (default) runs it on rclpy's ``EventsExecutor``; its ``spin()`` waits in C++
+    without returning to Python, so a signal's Python handler would never run: it is spun in
+    ``spin_once`` slices of 0.1 s instead, which run every event as it arrives and let SIGINT
+    and SIGTERM stop the node. ``single_threaded`` is ``rclpy.spin(node)``.
+    """
+    kind = kind or node_executor_kind()
+    if kind == 'single_threaded':
+        rclpy.spin(node)
+        return
+    executor = make_executor(kind, node.context)
+    executor.add_node(node)
+    while node.context.ok():
+        executor.spin_once(timeout_sec=0.1)
 
 
 def private_domain_id():
@@ -80,11 +136,11 @@ class Graph:
     By default (``domain_id`` None and no ``ROS_DOMAIN_ID`` set) the graph is private: a random
     domain with discovery off, heard by nobody else. Set ``ROS_DOMAIN_ID`` (or pass
     ``domain_id``) to watch a run live from other processes. ``executor`` is one of
-    :data:`EXECUTORS` (default :data:`DEFAULT_EXECUTOR`).
+    :data:`EXECUTORS` (default from :data:`GRAPH_DEFAULTS`).
     """
 
     def __init__(self, domain_id=None, max_callbacks_per_drain=200_000, executor=None):
-        kind = executor or DEFAULT_EXECUTOR
+        kind = executor or GRAPH_DEFAULTS['executor']
         if kind not in EXECUTORS:
             raise ValueError(f'executor {kind!r}: expected one of {", ".join(EXECUTORS)}')
         private = domain_id is None and not os.environ.get('ROS_DOMAIN_ID', '').strip()
@@ -102,18 +158,27 @@ class Graph:
         self.callbacks_run = 0
         self._direct_time = []      # time sources whose node's clock the Graph sets itself
         self._direct_source = None
+        self.direct_time = GRAPH_DEFAULTS['direct_time']
+        self.node_services = not (private and GRAPH_DEFAULTS['private_without_services'])
 
     def add(self, node_cls, *, name=None, namespace=None, remappings=None, **params):
         """Create ``node_cls`` in this graph with parameter overrides ``params``.
 
         ``name`` renames the node, ``namespace`` pushes it into a namespace, ``remappings``
         maps topic names ``{"from": "to"}`` as ``--ros-args -r`` would. Clock sources (simulators,
-        players) are put in lock-step mode unless ``lockstep`` is given explicitly.
+        players) are put in lock-step mode unless ``lockstep`` is given explicitly. In a private
+        graph the nodes start without parameter services (``node.set_parameters`` still works).
         """
         if isinstance(node_cls, type) and issubclass(node_cls, ClockSourceNode):
             params.setdefault('lockstep', True)
-        kwargs = {'context': self.context,
-                  'parameter_overrides': overrides_from_dict(params)}
+        kwargs = {'context': self.context}
+        if not self.node_services:
+            # Nobody can reach a private graph's services (discovery is off), so its nodes do
+            # not offer the parameter and type-description services: 7 services per node that
+            # every executor wait would otherwise poll.
+            kwargs['start_parameter_services'] = False
+            params.setdefault('start_type_description_service', False)
+        kwargs['parameter_overrides'] = overrides_from_dict(params)
         cli = []
         if name:
             cli += ['-r', f'__node:={name}']
@@ -228,7 +293,8 @@ class Graph:
         """
         if not clock_source.params.lockstep:
             raise ValueError(f'{clock_source.get_name()}: lockstep parameter is false')
-        self._set_time_directly(clock_source)
+        if self.direct_time:
+            self._set_time_directly(clock_source)
         self.drain()
         while True:
             if until is not None and until():

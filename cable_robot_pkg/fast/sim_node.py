@@ -126,21 +126,24 @@ class FastSimNode(SimulationNode):
         dL = self.cfg.cables.length_rates(*trolley, *pl.trolley_velocity())
         self.pubs['cables_state'].publish(joint_state_msg(
             stamp, self.cable_names, pl.last_lengths, dL, pl.last_tensions))
-        self.pubs['winches_state'].publish(joint_state_msg(
-            stamp, self.cable_names, pl.unstretched, pl.winch_rates))
+        if self.pubs['winches_state'].get_subscription_count():   # no reader, no message
+            self.pubs['winches_state'].publish(joint_state_msg(
+                stamp, self.cable_names, pl.unstretched, pl.winch_rates))
         q, v, f = pl.leg_lengths()
         self.pubs['legs_state'].publish(joint_state_msg(stamp, LEG_NAMES, q, v, f))
         at_end = (q <= pl.geom.leg_min + 1e-3) | (q >= pl.geom.leg_max - 1e-3)
         self.stroke_steps += at_end
         self.pubs['orienting_state'].publish(joint_state_msg(stamp, HINGE_NAMES,
                                                              pl.hinge_angles()))
-        w = WrenchStamped()
-        w.header.stamp = stamp
-        w.header.frame_id = 'map'
-        w.wrench.force.x, w.wrench.force.y, w.wrench.force.z = (float(x) for x in pl.wind_force)
-        w.wrench.torque.x, w.wrench.torque.y, w.wrench.torque.z = (
-            float(x) for x in pl.wind_torque)
-        self.pubs['wind'].publish(w)
+        if self.pubs['wind'].get_subscription_count():
+            w = WrenchStamped()
+            w.header.stamp = stamp
+            w.header.frame_id = 'map'
+            w.wrench.force.x, w.wrench.force.y, w.wrench.force.z = (
+                float(x) for x in pl.wind_force)
+            w.wrench.torque.x, w.wrench.torque.y, w.wrench.torque.z = (
+                float(x) for x in pl.wind_torque)
+            self.pubs['wind'].publish(w)
         problems = []
         if pl.slack.any():
             problems.append('slack: ' + ', '.join(n for n, s in zip(self.cable_names, pl.slack)

@@ -1,0 +1,36 @@
+"""Climber figures for ``paramotion bench``: Gough-Stewart FK speed and the climbing graph's
+speed in one lock-step process."""
+import time
+from pathlib import Path
+
+TRUNK = Path(__file__).resolve().parent / 'trunks' / 'straight_palm.json'
+
+
+def bench_fk(quick: bool, options: dict) -> dict:
+    """Warm single FK solves/s and batched solves/s (:mod:`climber_pkg.fk_benchmark`)."""
+    from climber_pkg.fk_benchmark import benchmark_fk
+    res = benchmark_fk(poses=2000 if quick else 20000, repeats=1 if quick else 5)
+    return {'fk_single_per_s': float(res['fk_single_per_s']),
+            'fk_batched_per_s': float(res['fk_batched_per_s']),
+            'fk_batched_backend': res.get('fk_batched_backend')}
+
+
+def bench_graph(quick: bool, options: dict) -> dict:
+    """Sim seconds per wall second of the climbing graph on the straight palm (one process,
+    lock-step, no bag), over the first 5 (quick) or 30 sim seconds."""
+    from climber_pkg.scenario import run_climb
+    t0 = time.monotonic()
+    result, _, _ = run_climb(str(TRUNK), max_time=5.0 if quick else 30.0)
+    wall = time.monotonic() - t0
+    return {'climber_sim_per_wall': float(result['sim_time_s']) / max(wall, 1e-9)}
+
+
+#: Benchmarks that run a lock-step Graph (paramotion bench measures its levers on them).
+LOCKSTEP = ('climber',)
+
+# name -> (function(quick, options) -> figures, {key: table label})
+BENCHES = {
+    'fk': (bench_fk, {'fk_single_per_s': 'FK single (warm) solves/s',
+                      'fk_batched_per_s': 'FK batched solves/s'}),
+    'climber': (bench_graph, {'climber_sim_per_wall': 'climber graph sim s / wall s'}),
+}
