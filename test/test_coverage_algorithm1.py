@@ -1,6 +1,7 @@
 """The paper planner (coverage_pkg/algorithm1.py): Algorithm 1 of Acar, Choset and Lee driven by
 sensed events alone; its pieces and a closed loop on a hand-made world."""
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -8,13 +9,10 @@ import pytest
 from coverage_pkg.algorithm1 import PaperConfig, PaperPlanner, TracedPaths
 from coverage_pkg.kinematic import run_kinematic
 from coverage_pkg.sonar import SonarRing
-from coverage_pkg.world import world_from_dict
+from coverage_pkg.world import load_world
 from paramotion.errors import UserError
 
-# Two 8 x 8 m rooms joined by a 1.4 m wide, 4 m long corridor (doors at both ends).
-DOOR_ROOMS = {'name': 'door_rooms', 'boundary': [
-    [0, 0], [8, 0], [8, 3.3], [12, 3.3], [12, 0], [20, 0], [20, 8], [12, 8], [12, 4.7],
-    [8, 4.7], [8, 8], [0, 8]], 'obstacles': [], 'start': [4, 4]}
+DOOR_ROOMS = Path(__file__).resolve().parents[1] / 'coverage_pkg' / 'worlds' / 'door_rooms.json'
 
 
 def _planner(**kw):
@@ -61,7 +59,7 @@ def test_rooms_and_corridor_are_covered_by_sensed_events_alone():
     """The start is vast (D > delta): its boundary circuit senses the room's corner cusps and
     the corridor's; every other node was created by one of those cusp events, and each edge
     carries the cusp that created it."""
-    r = run_kinematic(world_from_dict(DOOR_ROOMS), PaperConfig(), max_time=600)
+    r = run_kinematic(load_world(DOOR_ROOMS), PaperConfig(), max_time=600)
     p = r['planner']
     assert r['state'] == 'done' and r['covered_fraction'] >= 0.99
     g = p.to_dict()

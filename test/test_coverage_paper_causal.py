@@ -2,28 +2,25 @@
 and the hierarchical decomposition graph, and what the robot covers, change as Algorithm 1
 says they must. Worlds are small (seconds of wall time each)."""
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from coverage_pkg.algorithm1 import PaperConfig
 from coverage_pkg.kinematic import run_kinematic
-from coverage_pkg.world import world_from_dict
+from coverage_pkg.world import load_world, world_from_dict
 
+WORLDS = Path(__file__).resolve().parents[1] / 'coverage_pkg' / 'worlds'
 # Two 8 x 8 m rooms joined by a 1.4 m wide corridor; the robot starts in the left one.
-DOOR_ROOMS = {'name': 'door_rooms', 'boundary': [
-    [0, 0], [8, 0], [8, 3.3], [12, 3.3], [12, 0], [20, 0], [20, 8], [12, 8], [12, 4.7],
-    [8, 4.7], [8, 8], [0, 8]], 'obstacles': [], 'start': [4, 4]}
+DOOR_ROOMS = WORLDS / 'door_rooms.json'
 CORRIDOR_CUSP = (6.1, 4.0)     # where D = delta on the corridor's GVD, in the left room
 ROOM = {'name': 'room', 'boundary': [[0, 0], [12, 0], [12, 8], [0, 8]], 'obstacles': [],
         'start': [6, 4]}
-# A hall with a 2 x 2 m pillar: its leftmost side is a split critical point of h = x.
-ISLAND = {'name': 'island_hall', 'boundary': [[0, 0], [18, 0], [18, 12], [0, 12]],
-          'obstacles': [[[8, 5], [10, 5], [10, 7], [8, 7]]], 'start': [3, 3]}
+# An 18 x 12 m hall with a 2 x 2 m pillar: its leftmost side is a split critical point of h.
+ISLAND = WORLDS / 'island_hall.json'
 # A T-shaped hall of 1.6 m corridors; the robot starts at the foot of the stem.
-T_HALL = {'name': 't_hall', 'boundary': [[0, 6], [6.2, 6], [6.2, 0], [7.8, 0], [7.8, 6],
-                                         [14, 6], [14, 7.6], [0, 7.6]],
-          'obstacles': [], 'start': [7, 0.8]}
+T_HALL = WORLDS / 't_hall.json'
 
 
 def _run(world, config=None, event_filter=None, injected=(), max_time=600):
@@ -31,8 +28,8 @@ def _run(world, config=None, event_filter=None, injected=(), max_time=600):
         if t == 0.0:
             planner.event_filter = event_filter
             planner.injected.extend(injected)
-    return run_kinematic(world_from_dict(world), config or PaperConfig(), max_time=max_time,
-                         on_step=hook)
+    world = load_world(world) if isinstance(world, Path) else world_from_dict(world)
+    return run_kinematic(world, config or PaperConfig(), max_time=max_time, on_step=hook)
 
 
 def _near(path, xy):
