@@ -286,3 +286,13 @@ def test_parse_without_names_the_bad_construct():
     with pytest.raises(UserError, match='--without gait: unknown construct; known: '
                                         'correction, prediction'):
         parse_without(['gait'], '--without')
+
+
+def test_cone_bias_of_eq5_vanishes_centred_and_grows_off_centre():
+    """The report's claim: the cone biases eq. (5) only away from the centred, aligned pose the
+    loop converges to (thin rays: no bias off-centre on a straight trunk)."""
+    from climber_pkg.report import cone_bias
+    bias = cone_bias(fovs=(0.0, 0.35), offsets=(0.0, 0.04), tilts_deg=(0.0,))
+    assert bias[0.0][(0.0, 0.0)] < 1e-9 and bias[0.35][(0.0, 0.0)] < 1e-9
+    assert bias[0.0][(0.04, 0.0)] < 1e-9
+    assert 1e-4 < bias[0.35][(0.04, 0.0)] < 0.005
