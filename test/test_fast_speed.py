@@ -201,3 +201,23 @@ def test_bench_refuses_bad_arguments():
         bench_real_time_factor(duration=math.inf)
     with pytest.raises(UserError, match='repeat'):
         bench_real_time_factor(duration=1.0, repeat=0)
+
+
+def test_graph_levers_leave_the_fast_run_bit_identical(monkeypatch):
+    """The lock-step Graph's speed levers (its own drain, time set directly, no parameter
+    services in a private graph) change nothing: the FAST series equal those of rclpy's
+    SingleThreadedExecutor with every node's /clock subscription and parameter services."""
+    from cable_robot_pkg.fast.scenario import run_graph
+    from paramotion.graph import graph_defaults
+    monkeypatch.delenv('ROS_DOMAIN_ID', raising=False)    # a private graph, as users get
+
+    def series():
+        run = run_graph(0.3)
+        return {k: np.array(v) for k, v in run['series'].items()}
+    with graph_defaults(executor='single_threaded', direct_time=False,
+                        private_without_services=False):
+        ref = series()
+    fast = series()
+    assert len(ref['t']) == 60 and np.ptp(np.array(ref['legs'])) > 0.0
+    for key in ref:
+        assert np.array_equal(ref[key], fast[key]), key
