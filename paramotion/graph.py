@@ -69,7 +69,7 @@ def make_executor(kind, context):
 #: (:func:`spin_node`): ``events`` or ``single_threaded``.
 NODE_EXECUTOR_ENV = 'PARAMOTION_EXECUTOR'
 NODE_EXECUTORS = ('events', 'single_threaded')
-DEFAULT_NODE_EXECUTOR = 'events'
+DEFAULT_NODE_EXECUTOR = 'single_threaded'
 
 
 def node_executor_kind():
@@ -84,10 +84,12 @@ def node_executor_kind():
 def spin_node(node, kind=None):
     """Spin ``node`` (its own process) until its context shuts down.
 
-    ``events`` (default) runs it on rclpy's ``EventsExecutor``; its ``spin()`` waits in C++
+    ``single_threaded`` (default) is ``rclpy.spin(node)``. ``events`` runs it on rclpy's
+    ``EventsExecutor`` (less CPU per message; a callback's exception is also logged by it at
+    FATAL level before ``run_node`` sees it, shutdown races included); its ``spin()`` waits in C++
     without returning to Python, so a signal's Python handler would never run: it is spun in
     ``spin_once`` slices of 0.1 s instead, which run every event as it arrives and let SIGINT
-    and SIGTERM stop the node. ``single_threaded`` is ``rclpy.spin(node)``.
+    and SIGTERM stop the node.
     """
     kind = kind or node_executor_kind()
     if kind == 'single_threaded':
