@@ -241,13 +241,14 @@ def run_node(node_cls, args=None):
 def _run_node(node_cls, args, signals):
     node = watchdog = None
     try:
-        rclpy.init(args=args)
+        rclpy.init(args=args, signal_handler_options=signals.rclpy_options())
         node = node_cls()
         # A node on sim time in its own process warns once if its simulator stops.
         from paramotion.clock_watchdog import attach
         watchdog = attach(node)
         signals.spinning()
-        rclpy.spin(node)
+        from paramotion.graph import spin_node  # the executor: $PARAMOTION_EXECUTOR
+        spin_node(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (RCLError, RuntimeError):

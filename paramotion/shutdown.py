@@ -46,13 +46,35 @@ class ShutdownSignals:
         self.received = []          # signal numbers, in arrival order
         self.interrupt = True       # raise KeyboardInterrupt on the first signal
         self._previous = {}
+        self.ignored = set()        # signals the process was started with ignored
 
     def install(self):
-        """Take over SIGINT and SIGTERM; call before ``rclpy.init`` (rclpy chains to it)."""
+        """Take over SIGINT and SIGTERM; call before ``rclpy.init`` (rclpy chains to it).
+
+        A signal the process was started with ignored stays ignored: a shell without job
+        control starts background jobs with SIGINT ignored, so that a Ctrl-C meant for the
+        foreground does not stop them (pass :meth:`rclpy_options` to ``rclpy.init`` so that
+        rclpy leaves it alone too).
+        """
         for sig in SIGNALS:
+            if signal.getsignal(sig) == signal.SIG_IGN:
+                self.ignored.add(sig)
+                continue
             self._previous[sig] = signal.signal(sig, self._handle)
         faulthandler.register(signal.SIGUSR1, all_threads=True)
         return self
+
+    def rclpy_options(self):
+        """The ``signal_handler_options`` for ``rclpy.init``: the signals not ignored."""
+        from rclpy.signals import SignalHandlerOptions
+        handled = set(SIGNALS) - self.ignored
+        if handled == set(SIGNALS):
+            return SignalHandlerOptions.ALL
+        if handled == {signal.SIGTERM}:
+            return SignalHandlerOptions.SIGTERM
+        if handled == {signal.SIGINT}:
+            return SignalHandlerOptions.SIGINT
+        return SignalHandlerOptions.NO
 
     def spinning(self):
         """The node spins: from now on rclpy's handler stops it, nothing is raised."""

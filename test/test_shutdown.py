@@ -9,6 +9,8 @@ checks exit code 0 and no traceback.
 """
 import os
 import signal
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -118,17 +120,39 @@ def test_simulator_exits_0_under_a_storm_of_signals(tmp_path, probe):
     assert_clean(code, out)
 
 
-@pytest.mark.parametrize('how', ['storm', 'sigterm'])
+class CliRecorder:
+    """``paramotion bag record`` as a subprocess, with NodeProcess's interface."""
+
+    def __init__(self, bag, log):
+        self._log = open(log, 'wb')
+        self.proc = subprocess.Popen(
+            [sys.executable, '-m', 'paramotion.cli', 'bag', 'record', '-o', str(bag),
+             '/test/chatter', '--flush-period', '0.2'], stdout=self._log,
+            stderr=subprocess.STDOUT, start_new_session=True,
+            preexec_fn=lambda: signal.signal(INT, signal.SIG_DFL))
+
+    def kill(self):
+        if self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait()
+        self._log.close()
+
+
+@pytest.mark.parametrize('how', ['storm', 'sigterm', 'cli-storm'])
 def test_recorder_finishes_its_bag_however_many_signals_arrive(tmp_path, probe, how):
     """Every message published (reliable) is in a complete bag (MCAP footer and
-    metadata.yaml) that rosbags and the mcap library open."""
+    metadata.yaml) that rosbags and the mcap library open: the bag_recorder node, and
+    ``paramotion bag record``."""
     from mcap.reader import make_reader
     from rosbags.highlevel import AnyReader
     bag = tmp_path / 'bag'
     log = tmp_path / 'recorder.log'
-    rec = NodeProcess('paramotion.bag.recorder_node', params={
-        'output': str(bag), 'topics': ['/test/chatter'], 'flush_period': 0.2,
-        'use_sim_time': False}, log_path=log)
+    if how.startswith('cli'):
+        rec = CliRecorder(bag, log)
+    else:
+        rec = NodeProcess('paramotion.bag.recorder_node', params={
+            'output': str(bag), 'topics': ['/test/chatter'], 'flush_period': 0.2,
+            'use_sim_time': False}, log_path=log)
     pub = probe.node.create_publisher(String, '/test/chatter', 10)
     try:
         assert wait_until(lambda: rec.proc.poll() is not None or
@@ -140,7 +164,7 @@ def test_recorder_finishes_its_bag_however_many_signals_arrive(tmp_path, probe, 
             probe.executor.spin_once(timeout_sec=0.002)
         # Signal once the recorder has written them all (flushed chunks read back).
         assert wait_until(lambda: _readable(bag) >= sent, 30.0, period=0.1), _readable(bag)
-        if how == 'storm':
+        if how.endswith('storm'):
             signals = storm(rec.proc)
             assert signals >= 2
         else:
@@ -159,6 +183,33 @@ def test_recorder_finishes_its_bag_however_many_signals_arrive(tmp_path, probe, 
     with open(next(bag.glob('*.mcap')), 'rb') as f:
         assert make_reader(f).get_summary().statistics.message_count == sent
     assert [m.data for m in read_messages(bag)]     # our own reader agrees it is readable
+
+
+def test_a_node_started_with_sigint_ignored_keeps_ignoring_it(tmp_path, probe):
+    """A shell without job control starts background jobs with SIGINT ignored so that a Ctrl-C
+    meant for the foreground leaves them running: the node keeps it ignored (rclpy too), and
+    stops cleanly on SIGTERM."""
+    log = tmp_path / 'controller.log'
+    out = open(log, 'wb')
+    proc = subprocess.Popen([sys.executable, '-m', 'paramotion.smoke.controller_node'],
+                            stdout=out, stderr=subprocess.STDOUT, start_new_session=True,
+                            preexec_fn=lambda: signal.signal(INT, signal.SIG_IGN))
+    try:
+        assert wait_until(lambda: proc.poll() is not None or 'smoke_controller' in
+                          probe.node.get_node_names(), 60.0), log.read_text()
+        time.sleep(0.5)
+        send(proc, (INT, INT))
+        time.sleep(2.0)
+        assert proc.poll() is None, log.read_text()
+        assert 'smoke_controller' in probe.node.get_node_names()
+        send(proc, (TERM,))
+        proc.wait(30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        out.close()
+    assert_clean(proc.returncode, log.read_text())
 
 
 def _readable(bag):

@@ -1,6 +1,5 @@
 """``paramotion bag record|play|info|reindex``: the bag tools without the ros2 CLI."""
 import faulthandler
-import signal
 import sys
 import time
 
@@ -29,16 +28,19 @@ def _linger(node, seconds):
 
 
 def _spin_node(node_cls, params, until=None, duration=None, linger=0.0):
-    """Run one node in this process until Ctrl-C, ``until()`` or ``duration`` wall seconds.
+    """Run one node in this process until Ctrl-C or SIGTERM, ``until()`` or ``duration`` wall
+    seconds.
 
-    When it stops by ``until()``, its publishers linger ``linger`` wall seconds first.
+    When it stops by ``until()``, its publishers linger ``linger`` wall seconds first. Further
+    SIGINT/SIGTERM while it stops are absorbed: the recorder's bag is always finished
+    (:mod:`paramotion.shutdown`). ``kill -USR1`` prints where every thread is.
     """
     import rclpy
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 
     from paramotion.node import overrides_from_dict
-    # ``kill -USR1`` prints where every thread is: the way to see a process that does not stop.
-    faulthandler.register(signal.SIGUSR1, all_threads=True)
+    from paramotion.shutdown import ShutdownSignals
+    signals = ShutdownSignals().install()
     context = rclpy.Context()
     rclpy.init(context=context)
     node = None
@@ -46,8 +48,9 @@ def _spin_node(node_cls, params, until=None, duration=None, linger=0.0):
     try:
         node = node_cls(context=context, parameter_overrides=overrides_from_dict(params))
         executor.add_node(node)
+        signals.spinning()
         end = None if duration is None else time.monotonic() + duration
-        while context.ok():
+        while context.ok() and not signals.requested:
             if until is not None and until(node):
                 _linger(node, linger)
                 break
@@ -67,6 +70,7 @@ def _spin_node(node_cls, params, until=None, duration=None, linger=0.0):
             rclpy.try_shutdown(context=context)
         finally:
             faulthandler.cancel_dump_traceback_later()
+            signals.finish()
     return node
 
 
