@@ -5,6 +5,7 @@ box).
 Argument parsing lives in :mod:`cable_robot_pkg.cdrpm.cli`; this module turns parsed
 arguments into a call of the analysis in :mod:`cable_robot_pkg.cdrpm` and writes its outputs.
 """
+import os
 import platform
 import time
 
@@ -39,7 +40,8 @@ def run(args):
     res = heldout_search(desc, pitch=args.pitch, sample=args.sample, map_cases=_mapper(args))
     res.update({'robot_dimensions_from': desc.source, 'pitch_m': args.pitch,
                 'date_utc': time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime()),
-                'machine': f'{platform.node()} {platform.processor()}',
+                'machine': f'{platform.node()}, {platform.processor() or "unknown CPU"}, '
+                           f'{os.cpu_count()} cores',
                 'wall_time_s': time.perf_counter() - start,
                 'command': f'paramotion workspace heldout --pitch {args.pitch} '
                            f'--sample {args.sample} --out {out}'})
