@@ -378,10 +378,15 @@ class Launcher:
         return codes
 
     def failure_message(self):
+        """One line naming the node that died while the launch ran, or None."""
         p = self.failed
         if p is not None:
             return (f"node '{p.action.label}' ({p.label}) died with exit code "
                     f'{p.popen.returncode}')
+        return None
+
+    def unclean_message(self):
+        """One line naming the nodes that did not exit 0 when stopped, or None."""
         if self.unclean:
             return 'stopped, but not cleanly: ' + ', '.join(
                 f"node '{p.action.label}' ({p.label}) exited with code {p.popen.returncode}"
@@ -415,7 +420,7 @@ def run(desc, log_dir=None, period=0.05):
         launcher.shutdown()
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-    message = launcher.failure_message()
+    message = launcher.failure_message() or launcher.unclean_message()
     if message:
         print(f'paramotion launch: error: {message}', file=sys.stderr, flush=True)
         return 1
