@@ -37,9 +37,10 @@ DEFAULT_EXECUTOR = 'lockstep'
 
 #: What a Graph does unless told otherwise (``paramotion bench --levers`` switches them one at
 #: a time to measure each): the executor, whether the clock source sets the nodes' time
-#: directly in lock-step, and whether a private graph's nodes skip their parameter services.
+#: directly in lock-step, whether a private graph's nodes skip their parameter services, and
+#: whether the lock-step drain polls QoS event handlers only in a drain's first round.
 GRAPH_DEFAULTS = {'executor': DEFAULT_EXECUTOR, 'direct_time': True,
-                  'private_without_services': True}
+                  'private_without_services': True, 'qos_events_first_round_only': True}
 
 
 @contextmanager
@@ -155,7 +156,8 @@ class Graph:
         _init_context(self.context, domain_id, private)
         self.executor_kind = kind
         self.executor = make_executor(kind, self.context)
-        self._lockstep = LockstepDrain(self.executor, self.context)
+        self._lockstep = LockstepDrain(self.executor, self.context,
+                                       GRAPH_DEFAULTS['qos_events_first_round_only'])
         self.nodes = []
         self.max_callbacks_per_drain = max_callbacks_per_drain
         self.callbacks_run = 0
@@ -386,9 +388,10 @@ class LockstepDrain:
     most one period later, and no callback of the graph depends on them.
     """
 
-    def __init__(self, executor, context):
+    def __init__(self, executor, context, qos_events_first_round_only=True):
         self.executor = executor
         self.context = context
+        self.qos_events_first_round_only = qos_events_first_round_only
         self._wait_sets = {}
 
     def drain(self, check_runaway):
@@ -396,7 +399,7 @@ class LockstepDrain:
         count = 0
         first = True
         while True:
-            ran = self._round(qos_events=first)
+            ran = self._round(qos_events=first or not self.qos_events_first_round_only)
             first = False
             count += ran
             if ran == 0:
