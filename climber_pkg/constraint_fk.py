@@ -29,6 +29,7 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from paramotion import gough_stewart as gs
 
@@ -55,7 +56,8 @@ def universal_axes(geom: gs.GoughStewartGeometry) -> np.ndarray:
     return u / np.linalg.norm(u, axis=1, keepdims=True)
 
 
-def coordinates_from_pose(geom, position, rotation) -> np.ndarray:
+def coordinates_from_pose(geom: gs.GoughStewartGeometry, position: ArrayLike,
+                          rotation: ArrayLike) -> np.ndarray:
     """The 49 coordinates of the assembly whose platform is at (position, rotation)."""
     position = np.asarray(position, dtype=float)
     rotation = np.asarray(rotation, dtype=float)
@@ -80,7 +82,7 @@ def _matrices(e):
             + 2 * (v[:, :, None] * v[:, None, :] + e0[:, None, None] * tilde))
 
 
-def constraints(geom, q, lengths) -> np.ndarray:
+def constraints(geom: gs.GoughStewartGeometry, q: ArrayLike, lengths: ArrayLike) -> np.ndarray:
     """phi(q) of eq. (4): [phi^K (36), phi^D (6), phi^P (7)]."""
     bodies = np.asarray(q, dtype=float).reshape(7, 7)
     r, e = bodies[:, :3], bodies[:, 3:]
@@ -99,7 +101,8 @@ def constraints(geom, q, lengths) -> np.ndarray:
     return np.concatenate([phi_k.reshape(-1), phi_d, phi_p])
 
 
-def constraint_jacobian(geom, q, lengths, step=1e-7) -> np.ndarray:
+def constraint_jacobian(geom: gs.GoughStewartGeometry, q: ArrayLike, lengths: ArrayLike,
+                        step: float = 1e-7) -> np.ndarray:
     """phi_q (49, 49) by central differences."""
     q = np.asarray(q, dtype=float)
     jac = np.empty((N_COORDS, N_COORDS))
@@ -111,8 +114,9 @@ def constraint_jacobian(geom, q, lengths, step=1e-7) -> np.ndarray:
     return jac
 
 
-def forward_kinematics_49(geom: gs.GoughStewartGeometry, lengths, guess_position,
-                          guess_rotation, tol: float = 1e-12,
+def forward_kinematics_49(geom: gs.GoughStewartGeometry, lengths: ArrayLike,
+                          guess_position: ArrayLike, guess_rotation: ArrayLike,
+                          tol: float = 1e-12,
                           max_iter: int = 30) -> ConstraintFKResult:
     """Newton-Raphson on eq. (4) from the assembly at the guessed platform pose."""
     q = coordinates_from_pose(geom, guess_position, guess_rotation)

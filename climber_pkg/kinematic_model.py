@@ -22,7 +22,8 @@ def start_direction(seed: int) -> tuple[float, float]:
     return float(phi), float(psi)
 
 
-def initial_pose_on_trunk(trunk, robot, s_start, lengths, offset=0.0, tilt=0.0, seed=0):
+def initial_pose_on_trunk(trunk, robot, s_start: float, lengths, offset: float = 0.0,
+                          tilt: float = 0.0, seed: int = 0) -> tuple:
     """World poses of ring 1 (on the axis at ``s_start``) and ring 2 from the leg lengths.
 
     With ``offset`` (m) the robot is shifted off the axis, in ring 1's plane, and with ``tilt``

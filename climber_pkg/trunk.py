@@ -219,8 +219,8 @@ class Trunk:
         return out
 
 
-    def cone_distance(self, origins, directions, field_of_view, max_range,
-                      boundary_rays=24):
+    def cone_distance(self, origins: np.ndarray, directions: np.ndarray, field_of_view: float,
+                      max_range: float, boundary_rays: int = 24) -> np.ndarray:
         """Nearest echo within each sensor's cone (n, 3): +inf when none within max_range.
 
         An ultrasonic sensor answers with the first echo of its beam, i.e. the nearest surface
