@@ -140,3 +140,24 @@ def test_heldout_cli_on_a_coarse_pitch(tmp_path, capsys):
     assert s['fig7_shrinks'] >= s['fig7_shrinks_by_cable_body'] >= s['fig7_and_workpiece']
     assert s['table2_within_5'] >= s['table2_and_tow_box'] >= s['fitted_with_both']
     assert 'candidates' in capsys.readouterr().out
+
+
+def test_report_summarises_a_heldout_result(tmp_path):
+    """The report's held-out section renders the counts of a heldout result file."""
+    import json
+
+    from cable_robot_pkg.cdrpm.report import _heldout_lines
+    assert 'has not been run' in _heldout_lines(tmp_path)[0]
+    fig7 = {'shrinks': True, 'body_decides': True, 'decided_high': 'cable_body'}
+    rows = [{'screen_worst': 20.0, 'near_table2': False, 'fig7': fig7, 'fig7_fixed': fig7,
+             'workpiece_share': 10.0, 'workpiece_gap_m': None}]
+    (tmp_path / 'workspace_heldout').mkdir()
+    (tmp_path / 'workspace_heldout' / 'result.json').write_text(json.dumps({
+        'summary': pf.summarise_heldout(rows), 'command': 'paramotion workspace heldout',
+        'date_utc': 'today', 'machine': 'here', 'wall_time_s': 60.0,
+        'stats': {'candidates_total': 9, 'near_table2_screen': 0, 'sampled_others': 1,
+                  'sample_seed': 0}}))
+    text = '\n'.join(_heldout_lines(tmp_path))
+    assert 'Of the 9 edge-anchored candidates' in text and '1 are evaluated' in text
+    assert "| ... with cable-body contact setting it at r_x = 45 deg (the paper's Fig. 7) | " \
+           '1 | 1 |' in text
