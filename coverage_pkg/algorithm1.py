@@ -107,6 +107,7 @@ class MorseCell:
     opened_by: int = None           # index of the event that opened it
     closed_by: int = None           # ... and of the event that closed it
     parent: int = None              # the cell whose critical point opened it
+    resume: tuple = None            # (x, y, dir): a slice to resume beyond an obstacle
     laps: list = field(default_factory=list)   # (x, y_lo, y_hi) per lap driven
     status: str = 'open'            # open, covering, covered, given_up
 
@@ -498,7 +499,9 @@ class PaperPlanner:
     def _morse_step(self, n):
         """MorseDecompCoverage: laps 2 delta apart in the current Morse cell; the moves
         between them follow the boundary at D = delta; critical points close cells."""
-        circ = self.task.get('circuit') or next((c for c in n.circuits if not c['done']), None)
+        busy = any(c.status == 'covering' for c in n.cells)
+        circ = self.task.get('circuit') or (
+            None if busy else next((c for c in n.circuits if not c['done']), None))
         if circ is not None:
             return self._circuit_step(n, circ)
         cell = self._open_cell(n)
@@ -510,6 +513,11 @@ class PaperPlanner:
         tk, s = self.task, cell.sweep
         if tk.get('phase') is None:                # at the cell's start
             if self._known_region(n, cell):
+                return None
+            if cell.resume is not None:            # the slice beyond an obstacle
+                tk.update(dir=cell.resume[2], x=self.pose[0], phase='lap')
+                self.mode = 'lap'
+                self._profile_reset()
                 return None
             if cell.prev_span is None:             # a node's first cell: find its left side
                 tk.update(phase='find_left')
@@ -524,6 +532,7 @@ class PaperPlanner:
         if tk['phase'] in ('lap_first', 'lap'):
             if self.echo(math.pi / 2 * tk['dir']) > self.det:
                 return self._lap_velocity(tk['x'], tk['dir'])
+            self._island(n, cell, tk['dir'])
             if tk['phase'] == 'lap_first':         # one end of the slice reached: lap it
                 tk.update(phase='lap', dir=-tk['dir'])
                 self._profile_reset()
@@ -562,7 +571,7 @@ class PaperPlanner:
         cell = next((c for c in n.cells if c.status == 'covering'), None)
         if cell is not None:
             return cell
-        opened = [c for c in n.cells if c.status == 'open']
+        opened = [c for c in n.cells if c.status == 'open' and c.start is not None]
         if not opened:
             return None
         src = self.paths.nearest(self.pose[:2])
@@ -664,7 +673,7 @@ class PaperPlanner:
         start = (self.task['x'], y)
         for m in self.nodes:
             for c in m.cells:
-                if math.dist(c.start, start) < self.det or any(
+                if (c.start is not None and math.dist(c.start, start) < self.det) or any(
                         abs(lx - start[0]) < 0.9 * self.det and lo - 0.5 <= y <= hi + 0.5
                         for lx, lo, hi in c.laps if c is not cell):
                     return
@@ -811,6 +820,40 @@ class PaperPlanner:
                 v = v - max(v @ nrm, 0.0) * nrm + np.clip(d - self.det, -1.0, 0.3) * nrm
         return v
 
+    def _island(self, n, cell, direction):
+        """The lap ends at an obstacle no boundary circuit has followed: an obstacle inside
+        the Morse cell. Where the slice meets it is a critical point (the slice splits); the
+        obstacle's boundary is followed next, and a successor cell resumes the slice on its
+        far side. The current cell goes on, on the near side."""
+        if 'critical' in self.cfg.without:
+            return
+        d = self.echo(math.pi / 2 * direction)
+        p = (self.pose[0], self.pose[1] + direction * d)
+        for c in n.circuits:                # followed already, or about to be
+            if (not c['done'] and math.dist(c['start'], p) < self.det + 0.5) or any(
+                    math.dist(q, p) < 0.6 for q in c.get('wall', ())):
+                return
+        idx = self._critical(n, p, 'split: the slice meets an obstacle inside the cell')
+        if idx is None:
+            return
+        n.circuits.append({'start': self.pose[:2], 'done': False, 'opened_by': idx})
+        n.cells.append(MorseCell(len(n.cells), None, cell.sweep, opened_by=idx, parent=cell.id,
+                                 resume=(self.pose[0], self.pose[1], direction)))
+
+    def _beyond(self, n, circ):
+        """Where the obstacle's circuit crosses the interrupted slice on the far side, the
+        successor cell starts; none: the slice ended at the obstacle."""
+        for c in n.cells:
+            if c.start is not None or c.opened_by != circ['opened_by'] or c.resume is None:
+                continue
+            x, y, direction = c.resume
+            far = [q for q in circ['trace'] if abs(q[0] - x) < 0.4 and
+                   direction * (q[1] - y) > 0.5]
+            if far:
+                c.start = max(far, key=lambda q: direction * (q[1] - y))
+            else:
+                c.status = 'covered'
+
     def _same_cell(self, n, trace):
         """A vast node not yet covered whose cusp lies on this boundary circuit is the cell
         just followed, reached through another cusp: it is covered with it."""
@@ -856,10 +899,14 @@ class PaperPlanner:
         trace = circ.setdefault('trace', [])
         if not trace or math.dist(trace[-1], self.pose[:2]) > 0.3:
             trace.append(self.pose[:2])
+            d, a = self.mins[0]               # the followed obstacle's point
+            circ.setdefault('wall', []).append((self.pose[0] + d * math.cos(a),
+                                                self.pose[1] + d * math.sin(a)))
         if (tk['length'] > 3.0 and math.dist(tk['origin'], self.pose[:2]) < 0.4) or \
                 tk['length'] > 500.0:
             circ['done'] = True
             self._same_cell(n, circ['trace'])
+            self._beyond(n, circ)
             if not n.cells:
                 n.cells.append(MorseCell(0, self.pose[:2], +1, opened_by=circ['opened_by']))
             self.task, self.mode = {}, None

@@ -9,7 +9,7 @@ import pytest
 from coverage_pkg.algorithm1 import PaperConfig, PaperPlanner, TracedPaths
 from coverage_pkg.kinematic import run_kinematic
 from coverage_pkg.sonar import SonarRing
-from coverage_pkg.world import load_world
+from coverage_pkg.world import load_world, world_from_dict
 from paramotion.errors import UserError
 
 DOOR_ROOMS = Path(__file__).resolve().parents[1] / 'coverage_pkg' / 'worlds' / 'door_rooms.json'
@@ -76,3 +76,21 @@ def test_rooms_and_corridor_are_covered_by_sensed_events_alone():
     assert all(n['covered'] and n['closed_by_event'] is not None for n in g['nodes'])
     prim = p.primitive_lengths()
     assert set(prim) <= {'lap', 'boundary', 'gvd', 'transit'} and prim['gvd'] > 4.0
+
+
+def test_obstacles_a_lap_runs_into_are_followed_and_their_slices_resumed_beyond():
+    """A 15 x 15 m hall with four pillars 5 m apart: each pillar is met by a lap (a critical
+    point: the slice splits), gets its own boundary circuit, and the slice is resumed on its
+    far side, so the hall is covered."""
+    pillars = [[[cx - 0.4, cy - 0.4], [cx + 0.4, cy - 0.4], [cx + 0.4, cy + 0.4],
+                [cx - 0.4, cy + 0.4]] for cx in (5.0, 10.0) for cy in (5.0, 10.0)]
+    world = world_from_dict({'name': 'pillars', 'boundary': [[0, 0], [15, 0], [15, 15], [0, 15]],
+                             'obstacles': pillars, 'start': [2.5, 2.5]})
+    r = run_kinematic(world, PaperConfig(), max_time=900)
+    vast = r['planner'].nodes[0]
+    assert r['state'] == 'done' and r['covered_fraction'] >= 0.99
+    assert len(vast.circuits) == 5                    # the hall's boundary and each pillar's
+    for circ in vast.circuits[1:]:
+        ev = r['planner'].events[circ['opened_by']]
+        assert ev[1] == 'critical' and 'split' in ev[4]
+        assert min(math.dist(ev[2:4], (cx, cy)) for cx in (5, 10) for cy in (5, 10)) < 1.0
