@@ -13,9 +13,10 @@ import math
 
 import numpy as np
 import pytest
-from test_voronoi_planner import SQUARE, independent_check, on_diagram_share
+from test_voronoi_planner import SQUARE, independent_check
 
 from voronoi_pkg.grid_baseline import ClearanceGridPlanner, segment_clearance
+from voronoi_pkg.measures import on_diagram_share, path_length
 from voronoi_pkg.planar import Domain, planar_model
 from voronoi_pkg.planner import RETRACTION, VoronoiPlanner
 
@@ -74,6 +75,7 @@ def test_clearance_geometry_matches_brute_force_sampling():
         assert g - 1e-9 <= ref <= g + 0.2 + 0.025 or (g == 0 and ref <= 0.2 + 0.025)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('name', sorted(SCENES))
 def test_detour_on_the_diagram_is_free_and_keeps_clear(name):
     obstacles, start, goal = SCENES[name]
@@ -107,6 +109,7 @@ def test_detour_on_the_diagram_is_free_and_keeps_clear(name):
           f'{res.planning_time:.2f} s')
 
 
+@pytest.mark.slow
 def test_comparison_with_the_clearance_weighted_grid_planner():
     """The clearance-weighted grid planner (ours, voronoi_pkg.grid_baseline) on the same grid
     and slices, on the block scene: both paths pass the independent check; the figures are
@@ -128,8 +131,3 @@ def test_comparison_with_the_clearance_weighted_grid_planner():
           f'{grid.min_rho:.3g}, {theirs.min():.2f}, {grid.planning_time:.2f} s, '
           f'{grid.stats["grid_vertices"]} free vertices')
     assert res.stats['diagram_nodes'] < 0.1 * grid.stats['grid_vertices']
-
-
-def path_length(path, phi_scale=10.0):
-    d = np.diff(np.asarray(path, dtype=float), axis=0)
-    return float(np.sum(np.sqrt(d[:, 0] ** 2 + d[:, 1] ** 2 + (phi_scale * d[:, 2]) ** 2)))

@@ -119,6 +119,13 @@ def test_bad_parameters_are_refused():
         with pytest.raises(ParameterError, match='scene_file'):
             graph.add(VoronoiPlannerNode, scene_file='/nonexistent/scene.json')
     with Graph() as graph:
+        with pytest.raises(ParameterError, match="parameter 'without'.*'walls'"):
+            graph.add(VoronoiPlannerNode, without='walls')
+    with Graph() as graph:
+        node = graph.add(VoronoiPlannerNode, grid_spacing=3.0, slice_step_deg=15.0,
+                         without='collision')
+        assert 'collision' not in node.model.programs
+    with Graph() as graph:
         with pytest.raises(ParameterError, match='exceeds'):
             graph.add(VoronoiPlannerNode, grid_spacing=0.1, slice_step_deg=0.5)
     with Graph() as graph:

@@ -16,6 +16,7 @@ from paramotion.cli import main as cli_main
 from paramotion.errors import UserError
 from voronoi_pkg.diagram import grid_axes, slice_fields
 from voronoi_pkg.grid_baseline import ClearanceGridPlanner
+from voronoi_pkg.measures import on_diagram_share
 from voronoi_pkg.planar import (
     PAPER_GOAL,
     PAPER_START,
@@ -25,7 +26,6 @@ from voronoi_pkg.planar import (
     planar_model,
 )
 from voronoi_pkg.planner import ATTACH, RETRACTION, SLICE_LINK, SLICE_PIECE, VoronoiPlanner
-from voronoi_pkg.ties import tie_gap
 
 SQUARE = np.array([[-25, 40], [-25, -40], [55, -40], [55, 40]], dtype=float)
 
@@ -94,6 +94,38 @@ def _resample(a, b, step_xy, step_phi):
     return a[owner] + t[:, None] * d[owner], owner
 
 
+def _swept(q0, q1, base, length, boundary, obstacles):
+    """Per step q0[i] -> q1[i]: the quadrilateral swept by the platform meets a scene segment
+    (a wall crossed while parallel to it lies between two samples)."""
+    def ends(q):
+        return q[:, :2], q[:, :2] + length * np.stack([np.cos(q[:, 2]), np.sin(q[:, 2])], 1)
+    (a3, a4), (b3, b4) = ends(q0), ends(q1)
+    quad = [a3, a4, b4, b3]
+    edges = [(np.asarray(base[0], float), np.asarray(base[1], float))]
+    if boundary is not None and len(boundary):
+        edges += [(boundary[i], boundary[(i + 1) % len(boundary)]) for i in range(len(boundary))]
+    for poly in obstacles:
+        poly = np.asarray(poly, dtype=float)
+        edges += [(poly[i], poly[(i + 1) % len(poly)]) for i in range(len(poly))]
+    hit = np.zeros(len(q0), dtype=bool)
+    lo, hi = np.minimum.reduce(quad), np.maximum.reduce(quad)
+    for s, e in edges:
+        s, e = np.asarray(s, dtype=float), np.asarray(e, dtype=float)
+        # Bounding boxes first (cheap), the exact tests only where they overlap.
+        k = np.flatnonzero(np.all((lo <= np.maximum(s, e) + 1e-9)
+                                  & (hi >= np.minimum(s, e) - 1e-9), axis=1))
+        sub = [c[k] for c in quad]
+        for i in range(4):
+            r = sub[(i + 1) % 4] - sub[i]
+            real = np.hypot(r[:, 0], r[:, 1]) > 1e-12         # a point does not move: no edge
+            hit[k] |= real & _segments_intersect(sub[i], r, np.broadcast_to(s, r.shape),
+                                                 np.broadcast_to(e - s, r.shape))
+        side = np.stack([_cross2(sub[(i + 1) % 4] - sub[i], s - sub[i]) for i in range(4)])
+        flat = np.stack([np.hypot(*(sub[(i + 1) % 4] - sub[i]).T) <= 1e-12 for i in range(4)])
+        hit[k] |= np.all((side > 0) | flat, axis=0) | np.all((side < 0) | flat, axis=0)
+    return hit
+
+
 def bad_segments(a, b, base=((0.0, 0.0), (15.0, 0.0)), length=10.0, boundary=SQUARE,
                  obstacles=(), step_xy=0.05, step_phi=0.01):
     """Which straight segments a[i] -> b[i] in configuration space are not free: checked
@@ -105,6 +137,8 @@ def bad_segments(a, b, base=((0.0, 0.0), (15.0, 0.0)), length=10.0, boundary=SQU
     first = np.r_[0, np.flatnonzero(np.diff(owner)) + 1]
     first_of = first[owner]
     bad = hit | (side == 0) | (coll == 0) | (side != side[first_of]) | (coll != coll[first_of])
+    bad[1:] |= (owner[1:] == owner[:-1]) & _swept(q[:-1], q[1:], base, length, boundary,
+                                                   obstacles)
     out = np.zeros(len(a), dtype=bool)
     out[owner[bad]] = True
     return out
@@ -123,35 +157,10 @@ def independent_check(path, base=((0.0, 0.0), (15.0, 0.0)), length=10.0, boundar
         return 'P2, P3, P4 become collinear'
     if hit.any():
         return f'platform meets an obstacle segment at {q[hit][0].tolist()}'
+    swept = _swept(q[:-1], q[1:], base, length, boundary, obstacles)
+    if swept.any():
+        return f'platform sweeps across an obstacle segment after {q[:-1][swept][0].tolist()}'
     return None
-
-
-def tie_distance(model, path, eps=1e-3):
-    """Distance in (x, y) of each configuration of ``path`` from the simplified Voronoi
-    diagram, from rho's contacts directly (not the planner's bookkeeping): the gap between the
-    two smallest contacts over the norm of its gradient (central differences; the contacts
-    are affine in x, y within a slice, so this is exact on a straight piece)."""
-    path = np.asarray(path, dtype=float)
-    gap = tie_gap(*model.contact_values(path))
-    grad = [(tie_gap(*model.contact_values(path + d)) - tie_gap(*model.contact_values(path - d)))
-            / (2 * eps) for d in (np.array([eps, 0, 0]), np.array([0, eps, 0]))]
-    return gap / np.maximum(np.hypot(*grad), 1e-300)
-
-
-def on_diagram_share(model, path, delta, phi_scale=10.0):
-    """Share of the path's length (phi weighted by ``phi_scale``) within ``delta`` of the
-    diagram (:func:`tie_distance` at both ends of a step), counted between the first and the
-    last sample within ``delta``: the two retraction climbs onto the diagram are excluded,
-    found from rho, not from the planner's labels. Returns ``(share, excluded length)``."""
-    path = np.asarray(path, dtype=float)
-    near = tie_distance(model, path) <= delta
-    d = np.diff(path, axis=0)
-    length = np.sqrt(d[:, 0] ** 2 + d[:, 1] ** 2 + (phi_scale * d[:, 2]) ** 2)
-    idx = np.flatnonzero(near)
-    inner = slice(idx[0], idx[-1])
-    on = near[:-1] & near[1:]
-    return (float(length[inner][on[inner]].sum() / length[inner].sum()),
-            float(length.sum() - length[inner].sum()))
 
 
 @pytest.fixture(scope='module')
@@ -247,6 +256,7 @@ def test_scene_file_errors_are_one_line(tmp_path):
         load_scene(tmp_path / 'missing.json')
 
 
+@pytest.mark.slow
 def test_cli_plan_writes_result_and_figures(tmp_path, capsys):
     scene = tmp_path / 'scene.json'
     scene.write_text(json.dumps({'obstacles': [[[30, 10], [40, 10], [40, 20], [30, 20]]]}))

@@ -268,6 +268,7 @@ def demo_result():
     return model, planner, planner.plan(DEMO_START, DEMO_GOAL)
 
 
+@pytest.mark.slow
 def test_demo_detour_is_found_on_the_diagram_and_verified_independently(demo_result):
     model, planner, res = demo_result
     assert res.found, res.reason
@@ -304,6 +305,7 @@ WALL_START = (-0.2, 0.3, 0.65, 0.0, 0.0, 0.0)
 WALL_GOAL = (0.3, 0.3, 0.65, 0.0, 0.0, 0.0)
 
 
+@pytest.mark.slow
 def test_window_detour_found_and_walled_off_answered_no_path():
     window = _window_model(True)
     planner = DiagramRoadmapPlanner(window, n_samples=200, seed=0)
@@ -351,6 +353,7 @@ def test_singularity_cell_certificate_and_bad_poses():
         demo.plan(DEMO_START, (0.0, 0.0, 3.0, 0.0, 0.0, 0.0))
 
 
+@pytest.mark.slow
 def test_cli_plan321_writes_result_and_figure(tmp_path):
     out = tmp_path / 'out'
     window = tmp_path / 'window.json'
@@ -384,6 +387,7 @@ def test_cli_plan321_writes_result_and_figure(tmp_path):
     assert not (tmp_path / 'o2').exists()
 
 
+@pytest.mark.slow
 def test_unseen_random_scene_queries_are_verified():
     """Random box and random free start/goal: every path found passes the independent
     check, and every 'no path' names the roadmap resolution."""

@@ -38,6 +38,9 @@ def register(subparsers):
     p.add_argument('--grid', type=float, default=1.0, help='grid spacing in x, y (units)')
     p.add_argument('--slice-deg', type=float, default=2.5, help='orientation slice spacing')
     p.add_argument('--no-figures', action='store_true', help='write result.json only')
+    p.add_argument('--without', action='append', default=[], metavar='NAME',
+                   help='switch a construct of the paper off (ablation; repeatable): '
+                        'singularity (the factors of P1), collision (the predicates of P2)')
     p.set_defaults(func=_plan)
 
     p = sub.add_parser('plan321', help='plan for the spatial 3-2-1 platform of Fig. 1',
@@ -96,7 +99,8 @@ def _plan(args):
     if not (0 < args.slice_deg <= 45):
         raise UserError(f'--slice-deg {args.slice_deg}: must be in (0, 45]')
     out = _check_out(args.out)
-    model = load_scene(args.scene) if args.scene else paper_model()
+    model = (load_scene(args.scene, args.without) if args.scene
+             else paper_model(without=args.without))
     start = np.array([args.start[0], args.start[1], math.radians(args.start[2])])
     goal = np.array([args.goal[0], args.goal[1], math.radians(args.goal[2])])
     validate_configuration(model, start, 'start')   # refuse bad input before writing
@@ -132,6 +136,7 @@ def _plan(args):
         'clearance_profile': _profile(res),
         'grid': args.grid,
         'slice_deg': args.slice_deg,
+        'without': list(args.without),
         'stats': {k: (float(v) if isinstance(v, (np.floating, float)) else
                       int(v) if isinstance(v, np.integer) else v)
                   for k, v in res.stats.items()},
@@ -305,14 +310,14 @@ def _bench(args):
         rates_cpu.append(args.configs / max(time.process_time() - cpu, 1e-9))
         rates.append(args.configs / (time.perf_counter() - t))
         t = time.perf_counter()
-        model.evaluate(q)
+        model.fields(q)
         rates_active.append(args.configs / (time.perf_counter() - t))
     print(f'planar rho (P1 AND P2, {model.programs["total"].n_leaves} signed leaves, '
           f'{len(model.programs["total"].keys)} determinants): median '
           f'{statistics.median(rates):.3g} configurations/s wall, '
           f'{statistics.median(rates_cpu):.3g} per CPU second (target > 1e6)')
-    print(f'planar rho + active leaf: median {statistics.median(rates_active):.3g} '
-          'configurations/s')
+    print(f'planar rho + smallest contact + singularity cell: median '
+          f'{statistics.median(rates_active):.3g} configurations/s')
     cold, cold_cpu, warm, prepared = [], [], [], []
     for _ in range(args.repeats):
         planner = VoronoiPlanner(model)

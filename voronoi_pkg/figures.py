@@ -59,6 +59,11 @@ def figure2(model, path, phi=math.pi / 4, h=0.25):
     fig, axes = plt.subplots(3, 2, figsize=(11, 14), constrained_layout=True)
     letters = iter('abcdef')
     for row, program in enumerate(('singularity', 'collision', 'total')):
+        if program not in model.programs:       # switched off (ablation)
+            for a in axes[row]:
+                a.set_axis_off()
+                a.set_title(f'({next(letters)}) {_TITLES[program]}: switched off')
+            continue
         rho = model.rho(q, program)
         ax = axes[row, 0]
         lim = float(np.max(np.abs(rho)))

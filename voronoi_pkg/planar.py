@@ -38,14 +38,31 @@ from voronoi_pkg.predicates import (
     segments_cross,
 )
 
-__all__ = ['Domain', 'NamedPredicate', 'PlanarModel', 'load_scene', 'paper_model', 'planar_model',
-           'PAPER_START', 'PAPER_GOAL']
+__all__ = ['CONSTRUCTS', 'Domain', 'NamedPredicate', 'PlanarModel', 'check_without', 'load_scene',
+           'paper_model', 'planar_model', 'PAPER_START', 'PAPER_GOAL']
 
 #: The query of Fig. 3: from (35, -20, pi/2) to (-10, -15, -pi/2).
 PAPER_START = (35.0, -20.0, math.pi / 2)
 PAPER_GOAL = (-10.0, -15.0, -math.pi / 2)
 
 _CHUNK = 1 << 16
+
+#: Constructs of the paper that ``without`` switches off (ablations): the singularity factors
+#: of P1 and the collision predicates of P2.
+CONSTRUCTS = ('singularity', 'collision')
+
+
+def check_without(without) -> tuple:
+    """The ablation names as a tuple; refuses unknown names with one line."""
+    names = tuple(w for w in (without or ()) if w)
+    bad = [w for w in names if w not in CONSTRUCTS]
+    if bad:
+        raise UserError(f'without: unknown construct {bad[0]!r} (choose from '
+                        f'{", ".join(CONSTRUCTS)})')
+    if set(names) >= set(CONSTRUCTS):
+        raise UserError('without: switching off both singularity and collision leaves no '
+                        'predicate to plan with')
+    return names
 
 
 @dataclass(frozen=True)
@@ -98,15 +115,14 @@ class PlanarModel:
     def __post_init__(self):
         self.fixed = {k: np.asarray(v, dtype=float) for k, v in self.fixed.items()}
         self.moving = {k: np.asarray(v, dtype=float) for k, v in self.moving.items()}
-        self.singularity_tree = fuse(*[p.tree for p in self.predicates
-                                       if p.kind == 'singularity'])
-        self.collision_tree = fuse(*[p.tree for p in self.predicates if p.kind == 'collision'])
+        if not self.predicates:
+            raise UserError('the model has no predicate left (every construct switched off)')
         self.tree = fuse(*[p.tree for p in self.predicates])
-        self.programs = {
-            'singularity': compile_rho(self.singularity_tree),
-            'collision': compile_rho(self.collision_tree),
-            'total': compile_rho(self.tree),
-        }
+        # One program per kind present (an ablation may remove a kind), and the fused one.
+        self.programs = {kind: compile_rho(fuse(*[p.tree for p in self.predicates
+                                                  if p.kind == kind]))
+                         for kind in CONSTRUCTS if any(p.kind == kind for p in self.predicates)}
+        self.programs['total'] = compile_rho(self.tree)
         self.factor_programs = [compile_rho(p.tree) for p in self.predicates]
         # rho at or below this counts as forbidden: a configuration whose determinant is zero
         # up to rounding (e.g. exactly singular) must not be taken as free. Determinants are
@@ -199,8 +215,38 @@ class PlanarModel:
 
     def singular_signs(self, q):
         """Signs of the pure-condition determinants, ``(n_singular, ...)`` of -1/0/+1."""
+        if not self.singular_keys:                  # singularities switched off
+            return np.zeros((0,) + np.shape(q)[:-1])
         pts = self.points(q)
         return np.sign(evaluate_determinants(self.singular_keys, pts))
+
+    def swept_hits(self, a, b):
+        """Whether the platform, moving straight from configurations ``a`` to ``b`` (each
+        ``(n, 3)``, one small step), sweeps across a fixed scene segment: the quadrilateral
+        P3(a) P4(a) P4(b) P3(b) meets the segment (closed test). Samples of rho step over a
+        wall the platform crosses while parallel to it (there the collision set of one slice
+        is a line, of zero width); this catches it. Empty when collisions are switched off."""
+        a, b = np.atleast_2d(a), np.atleast_2d(b)
+        hit = np.zeros(len(a), dtype=bool)
+        if 'collision' not in self.programs or not len(a):
+            return hit
+        pa, pb = self.points(a), self.points(b)
+        m0, m1 = sorted(self.moving)[0], sorted(self.moving)[-1]
+        quad = [pa[m0], pa[m1], pb[m1], pb[m0]]
+        lo, hi = np.minimum.reduce(quad), np.maximum.reduce(quad)
+        for u, v in self.segments.values():
+            if u not in self.fixed or v not in self.fixed:
+                continue
+            s, e = self.fixed[u], self.fixed[v]
+            k = np.flatnonzero(np.all((lo <= np.maximum(s, e)) & (hi >= np.minimum(s, e)),
+                                      axis=1))
+            sub = [c[k] for c in quad]
+            for i in range(4):
+                hit[k] |= _closed_cross(sub[i], sub[(i + 1) % 4], s, e)
+            inside = np.stack([_orient(sub[i], sub[(i + 1) % 4], s) for i in range(4)])
+            flat = np.stack([np.all(sub[i] == sub[(i + 1) % 4], axis=-1) for i in range(4)])
+            hit[k] |= (np.all((inside > 0) | flat, axis=0) | np.all((inside < 0) | flat, axis=0))
+        return hit
 
     def diagnose(self, q):
         """Names and rho values of the AND-ed factors that fail (rho <= 0) at one ``q``."""
@@ -213,12 +259,32 @@ class PlanarModel:
         return failures
 
 
-def planar_model(base, length, boundary, obstacles, domain):
+def _orient(p, q, r):
+    """Twice the signed area of the triangle p q r (broadcast over leading axes)."""
+    return ((q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1])
+            - (q[..., 1] - p[..., 1]) * (r[..., 0] - p[..., 0]))
+
+
+def _closed_cross(p, q, r, s):
+    """Closed segments pq and rs meet (touching counts; collinear ones count as meeting when
+    their bounding boxes overlap)."""
+    o1, o2 = _orient(p, q, r), _orient(p, q, s)
+    o3, o4 = _orient(r, s, p), _orient(r, s, q)
+    lo = np.maximum(np.minimum(p, q), np.minimum(r, s))
+    hi = np.minimum(np.maximum(p, q), np.maximum(r, s))
+    boxes = np.all(lo <= hi, axis=-1)
+    return (o1 * o2 <= 0) & (o3 * o4 <= 0) & boxes
+
+
+def planar_model(base, length, boundary, obstacles, domain, without=()):
     """Build a planar model: base segment, platform length, boundary polygon (its edges are
     obstacles, as in the paper), convex obstacle polygons (counter-clockwise) and the domain.
+    ``without``: constructs switched off (:data:`CONSTRUCTS`): their predicates are left out
+    of rho, so the planner neither sees nor checks them.
 
     Labels: 1, 2 base; 3, 4 platform; 5.. boundary vertices; then obstacle vertices.
     """
+    without = check_without(without)
     fixed = {1: base[0], 2: base[1]}
     moving = {3: (0.0, 0.0), 4: (float(length), 0.0)}
     predicates = [
@@ -254,14 +320,15 @@ def planar_model(base, length, boundary, obstacles, domain):
         for a, b in ring:
             segments[f'obstacle {n} P{a}P{b}'] = (a, b)
         label += len(poly)
+    predicates = [p for p in predicates if p.kind not in without]
     return PlanarModel(fixed, moving, predicates, domain, segments)
 
 
-def paper_model(domain=None):
+def paper_model(domain=None, without=()):
     """Section 6 exactly: P1 and P2 of the paper over Fig. 3's region (phi over a full turn)."""
     return planar_model(base=((0.0, 0.0), (15.0, 0.0)), length=10.0,
                          boundary=((-25.0, 40.0), (-25.0, -40.0), (55.0, -40.0), (55.0, 40.0)),
-                         obstacles=(), domain=domain or Domain())
+                         obstacles=(), domain=domain or Domain(), without=without)
 
 
 def _points(value, name, count=None):
@@ -294,7 +361,7 @@ def _convex_ccw(poly, name):
     return [tuple(v) for v in p]
 
 
-def load_scene(path):
+def load_scene(path, without=()):
     """Read a planar scene JSON file; keys (all optional, defaults = the paper's scene):
 
     ``base`` [[x, y], [x, y]], ``platform_length`` > 0, ``boundary`` polygon (the robot moves
@@ -327,4 +394,4 @@ def load_scene(path):
     for name, (lo, hi) in (('x', x), ('y', y), ('phi_deg', phi)):
         if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
             raise UserError(f'scene: domain {name} must be [lo, hi] with lo < hi')
-    return planar_model(base, float(length), boundary, obstacles, Domain(x, y, phi))
+    return planar_model(base, float(length), boundary, obstacles, Domain(x, y, phi), without)

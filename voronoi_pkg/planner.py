@@ -113,8 +113,9 @@ def check_path(model, waypoints, step_xy=0.05, step_phi=0.01):
     """Dense check of a polyline in configuration space.
 
     Returns ``(ok, min_rho, bad_segments, samples, rho)``: rho must stay positive at every
-    sample and no pure-condition determinant may change sign (a singularity is a zero set, so
-    sampling rho alone could step over it).
+    sample, no pure-condition determinant may change sign (a singularity is a zero set, so
+    sampling rho alone could step over it) and no step may sweep the platform across a scene
+    segment (:meth:`~voronoi_pkg.planar.PlanarModel.swept_hits`).
     """
     samples, seg = densify(waypoints, step_xy, step_phi)
     rho = model.rho(samples)
@@ -122,6 +123,7 @@ def check_path(model, waypoints, step_xy=0.05, step_phi=0.01):
     bad = rho <= model.free_tol
     if signs.size:
         bad |= np.any(signs != signs[:, :1], axis=0) | np.any(signs == 0, axis=0)
+    bad[1:] |= model.swept_hits(samples[:-1], samples[1:])
     bad_segments = np.unique(seg[bad])
     return (not bad.any()), float(rho.min()), bad_segments, samples, rho
 
@@ -679,4 +681,6 @@ class VoronoiPlanner:
         if signs.size:
             first = np.repeat(np.cumsum(nseg + 1) - (nseg + 1), nseg + 1)
             bad |= np.any(signs != signs[:, first], axis=0) | np.any(signs == 0, axis=0)
+        same = seg[1:] == seg[:-1]
+        bad[1:] |= same & self.model.swept_hits(q[:-1], q[1:])
         return np.unique(seg[bad])

@@ -30,7 +30,7 @@ from paramotion.errors import ParameterError, UserError
 from paramotion.node import Param, ParamotionNode, run_node
 from paramotion.qos import LATCHED_QOS
 from voronoi_pkg.diagram import grid_axes, tie_segments
-from voronoi_pkg.planar import load_scene, paper_model
+from voronoi_pkg.planar import check_without, load_scene, paper_model
 from voronoi_pkg.planner import VoronoiPlanner, diagram_segments
 
 
@@ -57,13 +57,20 @@ class VoronoiPlannerNode(ParamotionNode):
         Param('frame_id', 'map', 'Frame of the scene, requests and the published path.'),
         Param('marker_slice_yaw', math.pi / 4, 'Yaw of the diagram slice published as '
               'markers (rad).', min=-math.pi, max=math.pi),
+        Param('without', '', 'Comma-separated constructs switched off (ablation): '
+              'singularity (the factors of P1), collision (the predicates of P2).',
+              read_only=True),
     )
 
     def __init__(self, node_name='voronoi_planner', **kwargs):
         super().__init__(node_name, **kwargs)
         try:
+            without = check_without(w.strip() for w in self.params.without.split(','))
+        except UserError as exc:
+            raise ParameterError(f"{node_name}: parameter 'without': {exc}") from None
+        try:
             scene = self.params.scene_file
-            self.model = load_scene(scene) if scene else paper_model()
+            self.model = load_scene(scene, without) if scene else paper_model(without=without)
         except UserError as exc:
             raise ParameterError(f"{node_name}: parameter 'scene_file': {exc}") from None
         reason = self.check_params(vars(self.params))
