@@ -38,6 +38,17 @@ def test_isolation_on_beats_off_by_a_wide_margin():
     assert np.median(on['isolation_update_s']) < 0.01
 
 
+def test_mode_and_ablations_reach_both_controllers():
+    """``isolation_mode`` and ``without`` travel through the launch description to the
+    isolation and cable controller nodes."""
+    run = run_graph(0.5, mode='cheng', without=('prediction', 'tracker_feedback'),
+                    record_series=False)
+    assert run['mode'] == 'cheng' and run['without'] == ['prediction', 'tracker_feedback']
+    assert run['cable_open_loop']
+    run = run_graph(0.5, mode='lu', record_series=False)
+    assert run['mode'] == 'lu' and run['without'] == [] and not run['cable_open_loop']
+
+
 def test_tracker_dropout_holds_warns_and_recovers():
     run = run_graph(4.5, wind=0.5, latency=0.02, isolation=True,
                     tracker={'dropout_start': 2.0, 'dropout_duration': 0.5})

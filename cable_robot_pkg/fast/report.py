@@ -50,7 +50,7 @@ def _case(spec: dict) -> dict:
 
 def _cases(quick: bool) -> list:
     d_mode, d_sweep, d_spec, d_coupled = (3.0, 3.0, 3.0, 3.0) if quick else \
-        (8.0, 4.0, 6.0, 6.0)
+        (6.0, 3.0, 5.0, 5.0)
     settle = 1.0 if quick else 2.0
     cases = []
 
@@ -66,9 +66,10 @@ def _cases(quick: bool) -> list:
     for variant, mode, over in (('lu', 'lu', None), ('lu + cure', 'lu', LU_CURE),
                                 ('cheng', 'cheng', None), ('predictive', 'predictive', None)):
         for lat in lat_sweep:
-            add(('sweep', variant, lat), d_sweep, mode=mode, overrides=over, latency=lat)
+            add(('sweep', variant, lat), d_sweep, mode=mode, overrides=over, latency=lat,
+                settle=1.0)
     winds = UNSEEN_WINDS[:1] if quick else UNSEEN_WINDS
-    spec_lat = (0.04,) if quick else (0.0, 0.02, 0.04, 0.06)
+    spec_lat = (0.04,) if quick else (0.02, 0.04, 0.06)
     for mode in ('cheng', 'predictive') if not quick else ('predictive',):
         for seed, direction in winds:
             for lat in spec_lat if mode == 'predictive' else (0.04,):
@@ -80,7 +81,7 @@ def _cases(quick: bool) -> list:
     return cases
 
 
-def run_cases(cases: list, workers: int = 2) -> dict:
+def run_cases(cases: list, workers: int = 3) -> dict:
     """Run ``cases`` in ``workers`` processes; ``{key: result}``."""
     with ProcessPoolExecutor(max_workers=workers, mp_context=get_context('spawn')) as pool:
         return {r['key']: r for r in pool.map(_case, cases)}

@@ -94,6 +94,7 @@ def run_graph(duration, config='', wind=1.0, latency=0.02, isolation=True, mode=
             'track': sim.cfg.track, 'chain': sim.cfg.chain, 'geometry': sim.cfg.geometry,
             'tension_limit_N': sim.cfg.raw['cables']['tension_max'],
             'mode': iso.ctl.mode, 'without': sorted(iso.without),
+            'cable_open_loop': cab.ctl.open_loop,
         }
 
 
