@@ -95,3 +95,42 @@ def test_the_t_junction_meet_point_makes_the_robot_trace_both_branches(without, 
         assert reached == (True, True) and r['covered_fraction'] >= 0.99
     else:
         assert not meets and sum(reached) == 1 and r['covered_fraction'] < 0.85
+
+
+def test_a_cusp_injected_into_the_scan_stream_creates_a_node_the_robot_goes_to():
+    """One sweep taken on the room's boundary circuit, mid-wall, gets a phantom echo at
+    delta - 0.05 m, 70 degrees off the wall's normal: to the ring the closest obstacle jumps
+    to another one at D = delta (Fig. 10). A cusp is sensed there, a narrow node and its edge
+    appear, and FindUncoveredNode later takes the robot back to it."""
+    plain = _run(ROOM)
+    assert not any(math.dist(n.anchor, (7.0, 2.0)) < 1.5 for n in plain['planner'].nodes)
+    state = {'armed': False, 'at': None, 'track': []}
+
+    def hook(t, p, cmd):
+        state['track'].append((t, p.pose[0], p.pose[1]))
+        if state['at'] is None and p.mode == 'boundary' and 'circuit' in p.task and \
+                abs(p.D - 2.0) < 0.1 and 6.5 < p.pose[0] < 7.5 and p.pose[1] < 2.5:
+            state['armed'], state['at'] = True, (p.pose[:2], p.mins[0][1], p)
+
+    def corrupt(t, ranges):
+        if not state['armed']:
+            return ranges
+        state['armed'] = False
+        _, wall, p = state['at']
+        off = np.remainder(p.mount + p.pose[2] - wall - math.radians(70) + math.pi,
+                           2 * math.pi) - math.pi
+        ranges = np.array(ranges, dtype=float)
+        ranges[int(np.argmin(np.abs(off)))] = 2.0 - 0.05
+        return ranges
+
+    r = run_kinematic(world_from_dict(ROOM), PaperConfig(), max_time=600, corrupt=corrupt,
+                      on_step=hook)
+    p = r['planner']
+    xy = state['at'][0]
+    node = next(n for n in p.nodes if math.dist(n.anchor, xy) < 0.3)
+    assert node.kind == 'narrow' and p.events[node.created_by][1] == 'cusp'
+    assert (0, node.id, node.anchor) in p.edges
+    t_chosen = next(d[0] for d in p.decisions if d[1] == node.id)
+    assert min(math.dist((x, y), node.anchor) for t, x, y in state['track']
+               if t > t_chosen) < 0.3
+    assert r['state'] == 'done' and node.covered
