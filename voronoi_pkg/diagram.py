@@ -62,7 +62,7 @@ class SliceFields:
     tol: float = 0.0     # rho <= tol counts as forbidden (numerically on an obstacle)
 
     @property
-    def free(self):
+    def free(self) -> np.ndarray:
         return self.rho > self.tol
 
 
@@ -105,7 +105,7 @@ def slice_fields(model, phis, xs, ys, program: str = 'total') -> SliceFields:
     return SliceFields(phis, xs, ys, rho, contact, code, cell, model.free_tol)
 
 
-def contact_evaluator(model, phi: float, program: str = 'total'):
+def contact_evaluator(model, phi: float, program: str = 'total') -> tuple:
     """``f(xy (n, 2)) -> (values, codes)`` of the contacts in the slice ``phi``, from the
     affine forms, and the forms ``(A, B, C)`` (each ``(n_keys,)``)."""
     prog = model.programs[program]
@@ -119,7 +119,7 @@ def contact_evaluator(model, phi: float, program: str = 'total'):
     return evaluate, (A[0], B[0], C[0])
 
 
-def shifted_pairs(shape, dy, dx):
+def shifted_pairs(shape: tuple, dy: int, dx: int) -> tuple:
     """Slices (a, b) of a (..., ny, nx) array such that b is a shifted by (dy, dx)."""
     ny, nx = shape[-2], shape[-1]
     ya = slice(max(0, -dy), ny - max(0, dy))
@@ -129,7 +129,8 @@ def shifted_pairs(shape, dy, dx):
     return (Ellipsis, ya, xa), (Ellipsis, yb, xb)
 
 
-def diagram_mask(rho, contact, code, cell=None, tol=0.0):
+def diagram_mask(rho: np.ndarray, contact: np.ndarray, code: np.ndarray,
+                 cell: np.ndarray | None = None, tol: float = 0.0) -> np.ndarray:
     """Free vertices (rho > tol) whose smallest contact differs, decided by another
     determinant, from that of a free 4-neighbour in the same singularity cell: the grid
     vertices next to the diagram. Works on ``(..., ny, nx)`` arrays."""
@@ -155,7 +156,7 @@ def tie_segments(model, phi: float, xs, ys, program: str = 'total') -> np.ndarra
     return sl.xyz[sl.edges][:, :, :2]
 
 
-def affine_coefficients(model, phis, program='total'):
+def affine_coefficients(model, phis, program: str = 'total') -> tuple:
     """Exact affine form of every determinant per orientation slice.
 
     For a fixed phi every moving point is P3 plus a constant, so each 3x3 determinant is affine
@@ -190,13 +191,13 @@ class DiagramSlice:
     _pair_tree: object = None
 
     @property
-    def tree(self):
+    def tree(self) -> cKDTree:
         """k-d tree over the nodes' (x, y) (built on first use)."""
         if self._tree is None:
             self._tree = cKDTree(self.xyz[:, :2] if len(self.xyz) else np.zeros((0, 2)))
         return self._tree
 
-    def pair_tree(self, scale):
+    def pair_tree(self, scale: float) -> cKDTree:
         """k-d tree over (x, y, scale * pair): nearest queries stay within one contact
         pair."""
         if self._pair_tree is None or self._pair_tree[0] != scale:
@@ -462,7 +463,7 @@ def diagram_slices(model, fields, program: str = 'total') -> list:
     return out
 
 
-def link_slices(lower, upper, radius):
+def link_slices(lower: DiagramSlice, upper: DiagramSlice, radius: float) -> np.ndarray:
     """Links between the diagram vertices of two consecutive slices: each node joins the
     nearest node of the same leaf pair (the same diagram sheet, moved by the rotation) and the
     two nearest nodes of any pair in the other slice, within ``radius`` in (x, y). Returns

@@ -82,11 +82,11 @@ class RhoProgram:
         self.root = _nnf(tree, False, leaf_id)
 
     @property
-    def n_leaves(self):
+    def n_leaves(self) -> int:
         """Number of distinct signed leaves (labels of the Voronoi regions)."""
         return len(self.leaves)
 
-    def leaf_text(self, leaf):
+    def leaf_text(self, leaf: int) -> str:
         """Readable name of a signed leaf, e.g. ``-[p1 p2 p3]``."""
         key_index, sign = self.leaves[leaf]
         body = '[' + ' '.join(f'p{k}' for k in self.keys[key_index]) + ']'
@@ -101,7 +101,7 @@ class RhoProgram:
             return cache[leaf]
         return value
 
-    def rho(self, dets):
+    def rho(self, dets) -> np.ndarray:
         """rho only (no active leaf): ``dets`` is ``(len(keys), ...)``; returns ``(...)``."""
         value = self._leaf_values(_rows(dets), {})
 
@@ -117,7 +117,7 @@ class RhoProgram:
         out = ev(self.root)
         return np.array(out, dtype=float, copy=True) if not isinstance(self.root, _Node) else out
 
-    def evaluate(self, dets):
+    def evaluate(self, dets) -> tuple:
         """rho and the active signed leaf: returns ``(rho, active)``, both shaped ``(...)``.
 
         Ties resolve to the first child in tree order, deterministically; values within a
@@ -177,7 +177,7 @@ class RhoProgram:
         vals, codes = zip(*(ev(k) for k in kids))
         return np.stack(vals), np.stack(codes)
 
-    def sub_values(self, dets):
+    def sub_values(self, dets) -> np.ndarray:
         """Values of the root's children (e.g. the AND-ed factors), ``(n_children, ...)``."""
         value = self._leaf_values(_rows(dets), {})
         kids = self.root.children if isinstance(self.root, _Node) else (self.root,)
@@ -205,6 +205,6 @@ def _rows(dets):
     return np.asarray(dets, dtype=float)
 
 
-def compile_rho(tree):
+def compile_rho(tree) -> RhoProgram:
     """Compile a predicate tree into its distance measure (section 4)."""
     return RhoProgram(tree)

@@ -37,6 +37,7 @@ from scipy.sparse.csgraph import breadth_first_order, dijkstra, minimum_spanning
 
 from paramotion.errors import UserError
 from voronoi_pkg.diagram import (
+    SliceFields,
     contact_evaluator,
     diagram_slices,
     grid_axes,
@@ -73,7 +74,7 @@ class PlanResult:
     clearance: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
 
     @property
-    def found(self):
+    def found(self) -> bool:
         return self.status == 'ok'
 
 
@@ -81,7 +82,7 @@ def _wrap(a):
     return (a + np.pi) % (2 * np.pi) - np.pi
 
 
-def unwrap_phi(points):
+def unwrap_phi(points) -> np.ndarray:
     """Make phi continuous along a polyline (differences taken modulo 2 pi)."""
     out = np.array(points, dtype=float, copy=True)
     if len(out) > 1:
@@ -89,7 +90,7 @@ def unwrap_phi(points):
     return out
 
 
-def densify(waypoints, step_xy=0.05, step_phi=0.01):
+def densify(waypoints, step_xy: float = 0.05, step_phi: float = 0.01) -> tuple:
     """Samples along the polyline with |d(x, y)| <= step_xy and |d phi| <= step_phi.
 
     Returns ``(samples (M, 3), segment_of_sample (M,))``; phi is used as given (unwrapped).
@@ -109,7 +110,7 @@ def densify(waypoints, step_xy=0.05, step_phi=0.01):
     return samples, seg
 
 
-def check_path(model, waypoints, step_xy=0.05, step_phi=0.01):
+def check_path(model, waypoints, step_xy: float = 0.05, step_phi: float = 0.01) -> tuple:
     """Dense check of a polyline in configuration space.
 
     Returns ``(ok, min_rho, bad_segments, samples, rho)``: rho must stay positive at every
@@ -128,7 +129,7 @@ def check_path(model, waypoints, step_xy=0.05, step_phi=0.01):
     return (not bad.any()), float(rho.min()), bad_segments, samples, rho
 
 
-def validate_configuration(model, q, name):
+def validate_configuration(model, q, name: str) -> None:
     """Refuse a query configuration that is not finite, outside the domain, or not free."""
     q = np.asarray(q, dtype=float)
     if q.shape != (3,) or not np.all(np.isfinite(q)):
@@ -177,7 +178,7 @@ def _bottleneck(n_nodes, u, v, clear, s_id, g_id):
     return worst
 
 
-def near_diagram_fraction(model, path, delta, phi_scale):
+def near_diagram_fraction(model, path, delta: float, phi_scale: float) -> float:
     """Length share of a dense ``path`` (phi weighted by ``phi_scale``) whose samples lie
     within ``delta`` in x or y of the diagram: a probe there has another smallest contact,
     decided by another determinant (:mod:`voronoi_pkg.ties`)."""
@@ -195,7 +196,7 @@ def near_diagram_fraction(model, path, delta, phi_scale):
     return float(length[near[:-1] & near[1:]].sum() / total) if total > 0 else 1.0
 
 
-def diagram_segments(result):
+def diagram_segments(result: 'PlanResult') -> np.ndarray:
     """The diagram edges a found path used, ``(m, 2, 3)`` pairs of configurations."""
     if not result.found:
         return np.zeros((0, 2, 3))
@@ -249,14 +250,14 @@ class VoronoiPlanner:
         self._links = {}
 
     @property
-    def base_fields(self):
+    def base_fields(self) -> SliceFields:
         """rho, smallest contact and cell on the uniform slices' grid (computed on first
         use)."""
         if self._fields is None:
             self._fields = slice_fields(self.model, self.phis, self.xs, self.ys)
         return self._fields
 
-    def prepare(self):
+    def prepare(self) -> None:
         """Compute and cache the diagram of every uniform slice and the links between
         consecutive ones (e.g. at node start-up)."""
         slices = self._uniform(range(len(self.phis)))
@@ -314,7 +315,7 @@ class VoronoiPlanner:
         return sorted(ks, key=lambda k: key(self.phis[k])), key
 
     # -- retraction ----------------------------------------------------------------------------
-    def retract(self, q):
+    def retract(self, q) -> tuple:
         """Climb rho from ``q`` within its slice onto the diagram (:mod:`voronoi_pkg.ties`).
 
         In a slice every contact is piecewise affine, so rho increases fastest along the
@@ -522,7 +523,7 @@ class VoronoiPlanner:
             return seq, kind[edges]
         raise RuntimeError('lazy search did not converge; raise max_iterations')
 
-    def plan(self, start, goal, progress=None):
+    def plan(self, start, goal, progress=None) -> PlanResult:
         """Plan from ``start`` to ``goal`` (each ``(x, y, phi_rad)``); see the module docs.
 
         The steps: a singularity certificate (no search when start and goal lie in different

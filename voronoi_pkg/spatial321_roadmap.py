@@ -93,7 +93,7 @@ def _leaf_gradients(model, q, codes, h=1e-6):
     return ((vals[1:] - vals[:1]) / h).T
 
 
-def tie_measure(model, q, grads=False):
+def tie_measure(model, q, grads: bool = False) -> dict:
     """Distance of poses ``q`` (M, 6) from the tie set of their two smallest contacts.
 
     Returns a dict: ``rho``, ``gap`` (f2 - f1), ``dist`` (gap / |grad(f2 - f1)|, scaled
@@ -198,7 +198,7 @@ def retract(model, q, tie_tol=1e-3, max_steps=30, t_first=1e-3, t_max=0.4, bisec
     return q, on_tie, steps, {i: np.array(c) for i, c in chains.items()}
 
 
-def project_to_tie(model, q, tie_tol=1e-3, iterations=6):
+def project_to_tie(model, q, tie_tol: float = 1e-3, iterations: int = 6) -> tuple:
     """Nearest point of the tie set, by Newton steps on ``f2 - f1 = 0`` (f1, f2: the two
     smallest distinct contacts, re-chosen at every step). Exact in one step for moves in
     position at a fixed orientation while the pair does not change. Poses that do not converge
@@ -236,7 +236,7 @@ class SpatialPlanResult:
     stats: dict = field(default_factory=dict)
 
     @property
-    def found(self):
+    def found(self) -> bool:
         return self.status == 'ok'
 
 
@@ -268,14 +268,14 @@ class DiagramRoadmapPlanner:
         self.shortcut = bool(shortcut)
 
     # -- samples -------------------------------------------------------------------------------
-    def samples(self):
+    def samples(self) -> np.ndarray:
         """Scrambled Halton poses in the bounds (deterministic for a seed)."""
         m = self.model
         u = qmc.Halton(d=6, scramble=True, seed=self.seed).random(self.n_samples)
         return m.lower() + u * (m.upper() - m.lower())
 
     # -- edges along the diagram -----------------------------------------------------------------
-    def trace(self, starts, ends, rounds=3):
+    def trace(self, starts, ends, rounds: int = 3) -> list:
         """Trace edges between diagram points along the diagram.
 
         Probes every ``probe_step`` (scaled metric) along the chord are projected onto the
@@ -342,7 +342,7 @@ class DiagramRoadmapPlanner:
         return list(~refused)
 
     # -- planning ------------------------------------------------------------------------------
-    def plan(self, start, goal, progress=None):
+    def plan(self, start, goal, progress=None) -> SpatialPlanResult:
         """Plan from ``start`` to ``goal`` (6-D poses). The steps: a singularity certificate,
         Halton samples retracted onto the diagram with start and goal (:meth:`_roadmap_nodes`),
         candidate edges between near nodes (:meth:`_candidate_edges`), a lazy shortest-path
@@ -549,7 +549,7 @@ class DiagramRoadmapPlanner:
                 i = jump[0]
         return out
 
-    def path_on_diagram(self, path, way, n_chain):
+    def path_on_diagram(self, path, way, n_chain) -> dict:
         """Length share of the path within ``diagram_tol`` of a tie, overall and between the
         two retraction chains, and the distance distribution of the path samples."""
         m = self.model
