@@ -109,6 +109,12 @@ def test_no_path_and_bad_requests_return_an_empty_plan_with_a_reason(graph):
     resp = client.call(_pose(*PAPER_START, frame='odom'), _pose(*PAPER_GOAL))
     assert len(resp.plan.poses) == 0
     assert "frame 'odom'" in client.last_status().message
+    client.status.clear()
+    zero = _pose(*PAPER_GOAL)
+    zero.pose.orientation.z = zero.pose.orientation.w = 0.0
+    resp = client.call(_pose(*PAPER_START), zero)
+    assert len(resp.plan.poses) == 0
+    assert 'goal: orientation' in client.last_status().message
 
 
 def test_bad_parameters_are_refused():

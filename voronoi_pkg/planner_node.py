@@ -29,19 +29,10 @@ from visualization_msgs.msg import Marker, MarkerArray
 from paramotion.errors import ParameterError, UserError
 from paramotion.node import Param, ParamotionNode, run_node
 from paramotion.qos import LATCHED_QOS
+from paramotion.rotations import quat_from_yaw, yaw_from_quat
 from voronoi_pkg.diagram import grid_axes, tie_segments
 from voronoi_pkg.planar import check_without, load_scene, paper_model
 from voronoi_pkg.planner import VoronoiPlanner, diagram_segments
-
-
-def yaw_from_quaternion(q):
-    """Yaw (rad) of a geometry_msgs Quaternion; refuses a non-finite or zero quaternion."""
-    vals = np.array([q.x, q.y, q.z, q.w], dtype=float)
-    norm = float(np.linalg.norm(vals))
-    if not np.all(np.isfinite(vals)) or norm < 1e-9:
-        raise UserError(f'orientation quaternion {vals.tolist()} is not a rotation')
-    x, y, z, w = vals / norm
-    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
 
 
 class VoronoiPlannerNode(ParamotionNode):
@@ -137,8 +128,8 @@ class VoronoiPlannerNode(ParamotionNode):
             pose.header = response.plan.header
             pose.pose.position.x = float(x)
             pose.pose.position.y = float(y)
-            pose.pose.orientation.z = math.sin(yaw / 2)
-            pose.pose.orientation.w = math.cos(yaw / 2)
+            o = pose.pose.orientation
+            o.x, o.y, o.z, o.w = quat_from_yaw(float(yaw))
             response.plan.poses.append(pose)
         self.last_path = result.path
         self.last_used = diagram_segments(result)
@@ -153,8 +144,12 @@ class VoronoiPlannerNode(ParamotionNode):
         if frame and frame != self.params.frame_id:
             raise UserError(f"{name} is in frame '{frame}', expected "
                             f"'{self.params.frame_id}'")
-        p = pose_stamped.pose.position
-        return np.array([p.x, p.y, yaw_from_quaternion(pose_stamped.pose.orientation)])
+        p, o = pose_stamped.pose.position, pose_stamped.pose.orientation
+        try:
+            yaw = yaw_from_quat((o.x, o.y, o.z, o.w))
+        except ValueError as exc:
+            raise UserError(f'{name}: orientation {exc}') from None
+        return np.array([p.x, p.y, yaw])
 
     # -- outputs ---------------------------------------------------------------------------
     def _status(self, level, message, values):
