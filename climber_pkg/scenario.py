@@ -357,8 +357,12 @@ def _run(args):
           f"{r['arc_length_reached_m']:.2f} of {r['trunk_length_m']:.2f} m "
           f"(height {r['height_reached_m']:.2f} m), top reached: {r['reached_top']}")
     if r['centering_error_median_m'] is not None:
-        print(f"  centering error median {1000 * r['centering_error_median_m']:.2f} mm, max "
-              f"{1000 * r['centering_error_max_m']:.2f} mm over {len(centering_list(r))} steps")
+        settled = r['off_axis_settled_max_m']
+        print(f"  off-axis median {1000 * r['centering_error_median_m']:.2f} mm, max "
+              f"{1000 * r['centering_error_max_m']:.2f} mm over {len(centering_list(r))} "
+              f"measurements; at start {1000 * r['off_axis_start_m']:.2f} mm, max from the "
+              f"second cycle on "
+              f"{'-' if settled is None else f'{1000 * settled:.2f} mm'}")
     print(f"  min ring-trunk clearance {1000 * r['min_ring_clearance_m']:.1f} mm, min leg "
           f"clearance {1000 * r['min_leg_clearance_m']:.1f} mm, contacts "
           f"{r['ring_trunk_contacts']}")
