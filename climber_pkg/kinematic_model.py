@@ -13,6 +13,7 @@ import numpy as np
 
 from climber_pkg.gait import RING1, RING2, ClampCommand, LegCommand
 from paramotion import gough_stewart as gs
+from paramotion.rotations import matrix_from_rotvec
 
 
 def start_direction(seed: int) -> tuple[float, float]:
@@ -47,8 +48,7 @@ def initial_pose_on_trunk(trunk, robot, s_start: float, lengths, offset: float =
         p1 = p1 + offset * (r1 @ np.array([math.cos(phi), math.sin(phi), 0.0]))
         mid = p1 + 0.5 * (r1 @ fk.position)
         turn_axis = r1 @ np.array([math.cos(psi), math.sin(psi), 0.0])
-        turn = gs.matrix_from_quaternion(np.concatenate([[math.cos(tilt / 2)],
-                                                         math.sin(tilt / 2) * turn_axis]))
+        turn = matrix_from_rotvec(tilt * turn_axis)
         p1 = mid + turn @ (p1 - mid)
         r1 = turn @ r1
     return (p1, r1), (p1 + r1 @ fk.position, r1 @ fk.rotation)

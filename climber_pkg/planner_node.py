@@ -61,6 +61,7 @@ from paramotion import gough_stewart as gs
 from paramotion.errors import UserError
 from paramotion.node import Param, ParamotionNode, run_node
 from paramotion.qos import LATCHED_QOS, SENSOR_QOS, STATE_QOS
+from paramotion.rotations import quat_from_matrix
 
 LEG_NAMES = tuple(f'leg{i}' for i in range(1, 7))
 
@@ -69,9 +70,9 @@ def pose_msg(position, rotation):
     msg = PoseStamped()
     msg.header.frame_id = 'odom'
     msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = (float(v) for v in position)
-    w, x, y, z = gs.quaternion_from_matrix(rotation)
-    msg.pose.orientation.w, msg.pose.orientation.x = float(w), float(x)
-    msg.pose.orientation.y, msg.pose.orientation.z = float(y), float(z)
+    x, y, z, w = quat_from_matrix(rotation)
+    msg.pose.orientation.x, msg.pose.orientation.y = float(x), float(y)
+    msg.pose.orientation.z, msg.pose.orientation.w = float(z), float(w)
     return msg
 
 

@@ -33,26 +33,15 @@ from climber_pkg.evaluation import ring_clearance
 from climber_pkg.kinematic_model import initial_pose_on_trunk
 from climber_pkg.robot import load_robot_config
 from climber_pkg.trunk import Trunk
-from paramotion import gough_stewart as gs
 from paramotion.errors import ParameterError, UserError
 from paramotion.node import Param, run_node
 from paramotion.qos import SENSOR_QOS, STATE_QOS
+from paramotion.rotations import matrix_from_quat, quat_from_matrix
 from paramotion.sim import SimulationNode
 
 LEG_NAMES = tuple(f'leg{i}' for i in range(1, 7))
 RING_SEGMENTS = 24
 TRUNK_SEGMENT = 0.1
-
-
-def quat_xyzw(rotation):
-    """PyBullet/ROS (x, y, z, w) quaternion of a rotation matrix."""
-    w, x, y, z = gs.quaternion_from_matrix(rotation)
-    return [float(x), float(y), float(z), float(w)]
-
-
-def matrix_xyzw(q):
-    x, y, z, w = q
-    return gs.matrix_from_quaternion([w, x, y, z])
 
 
 def frame_from_z(z_axis):
@@ -160,7 +149,7 @@ class ClimberSimNode(SimulationNode):
             height = float(np.linalg.norm(c - a)) + 0.01      # overlap the neighbours
             shape = b.createCollisionShape(b.GEOM_CYLINDER, radius=radius, height=height)
             body = b.createMultiBody(0.0, shape, basePosition=mid.tolist(),
-                                     baseOrientation=quat_xyzw(frame_from_z(c - a)))
+                                     baseOrientation=quat_from_matrix(frame_from_z(c - a)))
             self.trunk_bodies.append(body)
 
     def _make_ring(self, position, rotation):
@@ -182,7 +171,7 @@ class ClimberSimNode(SimulationNode):
                                             collisionFramePositions=pos,
                                             collisionFrameOrientations=orn)
         body = b.createMultiBody(rb.ring_mass, shape, basePosition=np.asarray(position).tolist(),
-                                 baseOrientation=quat_xyzw(rotation))
+                                 baseOrientation=quat_from_matrix(rotation))
         b.changeDynamics(body, -1, linearDamping=0.0, angularDamping=0.0)
         return body
 
@@ -197,7 +186,7 @@ class ClimberSimNode(SimulationNode):
         half_mass = rb.leg_mass / 2
         leg = b.createMultiBody(
             baseMass=half_mass, baseCollisionShapeIndex=ball, basePosition=a.tolist(),
-            baseOrientation=quat_xyzw(rot),
+            baseOrientation=quat_from_matrix(rot),
             linkMasses=[half_mass], linkCollisionShapeIndices=[ball],
             linkVisualShapeIndices=[-1], linkPositions=[[0.0, 0.0, 0.0]],
             linkOrientations=[[0, 0, 0, 1]], linkInertialFramePositions=[[0, 0, 0]],
@@ -297,7 +286,7 @@ class ClimberSimNode(SimulationNode):
         out = []
         for body in self.rings:
             pos, orn = self.bullet.getBasePositionAndOrientation(body)
-            out.append((np.array(pos), matrix_xyzw(orn)))
+            out.append((np.array(pos), matrix_from_quat(orn)))
         return out
 
     def publish_state(self):
@@ -319,7 +308,7 @@ class ClimberSimNode(SimulationNode):
         for pos, rot in self.ring_poses():
             pose = Pose()
             pose.position.x, pose.position.y, pose.position.z = (float(v) for v in pos)
-            x, y, z, w = quat_xyzw(rot)
+            x, y, z, w = quat_from_matrix(rot)
             pose.orientation.x, pose.orientation.y = x, y
             pose.orientation.z, pose.orientation.w = z, w
             pa.poses.append(pose)

@@ -18,12 +18,12 @@ from sensor_msgs.msg import Range
 
 from climber_pkg.robot import load_robot_config
 from climber_pkg.trunk import Trunk
-from paramotion import gough_stewart as gs
 from paramotion.errors import ParameterError
 from paramotion.messages import range_msg
 from paramotion.node import Param, ParamotionNode, run_node
 from paramotion.qos import SENSOR_QOS
 from paramotion.range_sensing import rep117_reading
+from paramotion.rotations import matrix_from_quat
 
 
 class ClimberUltrasonicNode(ParamotionNode):
@@ -69,7 +69,7 @@ class ClimberUltrasonicNode(ParamotionNode):
         pose = msg.poses[self.index]
         q = pose.orientation
         self.pose = (np.array([pose.position.x, pose.position.y, pose.position.z]),
-                     gs.matrix_from_quaternion([q.w, q.x, q.y, q.z]))
+                     matrix_from_quat([q.x, q.y, q.z, q.w]))
 
     def true_distances(self):
         """Noise-free nearest echo in each sensor's cone for the current ring pose (m or inf)."""
