@@ -142,9 +142,11 @@ def _plot(path, series, trunk_name):
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
     fig, ax = plt.subplots(figsize=(9, 4.5))
-    for label, values in series.items():
+    # Distinct markers (hollow, the last ones larger): some series coincide.
+    styles = [('.-', 3), ('s-', 3), ('x-', 4), ('d-', 3), ('o--', 7)]
+    for (label, values), (style, size) in zip(series.items(), styles):
         v = 1000 * np.asarray(values, dtype=float)
-        ax.plot(np.arange(v.size), v, '.-', ms=3, lw=1, label=label)
+        ax.plot(np.arange(v.size), v, style, ms=size, lw=1, label=label, mfc='none')
     ax.axhline(1000 * TARGET, color='k', ls='--', lw=0.8, label='target 20 mm')
     ax.set_yscale('log')
     ax.set_xlabel('measurement (each time the moving ring senses the structure)')
