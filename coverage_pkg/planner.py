@@ -1,42 +1,27 @@
-"""Online coverage planner: Algorithm 1 of Acar, Choset and Lee, from sonar and odometry only.
+"""The grid planner (``planner:=grid``, ours): frontier-driven coverage on an evidence grid.
 
-Inputs are sonar sweeps (REP 117 ranges of a transducer ring) and odometry; the output is a
-velocity command (holonomic base, body frame) and a status. Nothing else is known: the planner
-never reads the world file or the ground truth.
+This is not the paper's algorithm; Algorithm 1 of Acar, Choset and Lee, driven by sensed events
+alone, is :mod:`coverage_pkg.algorithm1` (``planner:=paper``). Inputs are sonar sweeps (REP 117
+ranges of a transducer ring) and odometry; the output is a velocity command (holonomic base,
+body frame) and a status. The planner never reads the world file or the ground truth.
 
-How Algorithm 1 maps onto this code
------------------------------------
-* **Sensing** (every sweep, :meth:`CoveragePlanner.on_sweep`): the ring gives ``D(x)`` (the
-  smallest valid range) and the closest obstacles (local minima of range over bearing). The
-  paper's sensor tests fire events that are stored with sim time and pose: ``cusp`` when ``D``
-  crosses ``delta`` near the GVD, placed where the two closest obstacles are both at ``delta``
-  (Fig. 10 during boundary following, Fig. 11 while tracing a GVD edge), ``meet`` where three
-  are equidistant (GVD order 3, narrow cell), ``critical`` while following the boundary at
-  ``D = delta`` when the closest obstacle lies along ``grad h = +-x`` (the normal is parallel
-  to the slice gradient).
-* **Memory**: the sweeps are also fused into an evidence grid (:mod:`coverage_pkg.mapping`).
-  On it the planner keeps the cells of the hierarchical decomposition exactly as Section IV-A
-  defines them: ``VR = {x in FCS_r : D(x) > delta}``, vast cells = components of VR, narrow
-  cells = components of ``NR = FCS_r \\ VR``. The grid localises events (a critical point
-  sensed by the ring is placed at ``delta`` from the closest sensed obstacle point) and feeds the
-  live view; it does not decide.
-* **The hierarchical graph decides** (:mod:`coverage_pkg.hierarchical_graph`): CreateNode for
-  the start (kind from ``D(x)``) and for every newly sensed cell; one edge per vast/narrow pair
-  that touch, carrying the cusp points sensed (or, before they are sensed, predicted on the GVD
-  at ``D = delta``) between them. The current node is covered by ``MorseDecompCoverage``
-  (vast: laps on the slices ``x = x0 + k 2 delta`` and the boundary ``D = delta``, the current
-  Morse cell first, a lap once begun to its end; a Morse cell whose work is done is closed) or
-  ``TraceGVD`` (narrow: its GVD edges, each as far as what is left unseen beside it needs:
-  the path ends where that comes within ``delta - view_margin``; once no uncovered vast cell
-  borders the node, its pieces in the order of the shortest open tour through them,
-  :mod:`coverage_pkg.tour`, so that short dead ends are not left behind).
-  A narrow node whose remaining work is ``leave_far`` away while an uncovered vast neighbour's
-  is within ``leave_near``, and all of it nearer than the narrow node's next piece, hands over
-  to that vast node first (the robot would leave it behind; Fig. 13(5) covers a vast cell
-  when it is reached).
-  When it is covered, ``FindUncoveredNode`` picks the uncovered node fewest graph edges away
-  and the robot is routed to it through the cusp points of the graph path. Coverage is
-  complete when the graph has no uncovered node: ``state == 'done'``.
+What decides here
+-----------------
+* **The evidence grid decides.** The sweeps are fused into an evidence grid
+  (:mod:`coverage_pkg.mapping`), re-decomposed every ``replan_period`` (1.5 s of sim time) and
+  at the end of each path: VR = {D > delta} and NR = FCS_r \\ VR on the grid give the vast and
+  narrow cells, the graph's nodes and edges (:mod:`coverage_pkg.hierarchical_graph`), the work
+  left (laps, boundary and GVD pieces next to cells the detector has not seen), the covered
+  flags and the end: coverage is complete when no unseen or frontier cell is left, which is
+  frontier exploration.
+* **Sensed events annotate.** Every sweep, the ring's tests fire ``cusp`` (D crosses delta on
+  the GVD, Fig. 10 and 11), ``meet`` (three closest obstacles equidistant) and ``critical``
+  (at D = delta the closest obstacle lies along +-x) events; they are stored with time and
+  pose and mark edges' cusp points as sensed; a sensed critical point confirms a grid slice
+  event as a Morse cell boundary. They do not create nodes, edges or work.
+* **Order of work** (ours): the current Morse cell first, laps begun at an end, a narrow
+  cell's pieces in the order of the shortest open tour (:mod:`coverage_pkg.tour`), a vast
+  cell not left behind (``leave_far``/``leave_near``), GVD paths trimmed to what they show.
 * **Recovery**: a robot that is commanded but does not move raises a ``stuck`` event; it backs
   away from the closest sensed obstacle for ``backoff_time``, the goal is marked blocked and
   the node is retried by another route (up to ``max_retries``); then the
@@ -148,7 +133,8 @@ class PlannerConfig:
 
 
 class CoveragePlanner:
-    """Algorithm 1, online. Feed :meth:`on_odometry` and :meth:`on_sweep`; call :meth:`update`."""
+    """The grid planner (ours, frontier-driven). Feed :meth:`on_odometry` and :meth:`on_sweep`;
+    call :meth:`update`."""
 
     def __init__(self, config, mount_angles, beam_width, min_range, max_range, noise_std=0.01):
         config.validate(max_range)
