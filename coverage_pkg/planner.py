@@ -562,10 +562,10 @@ class CoveragePlanner:
         wide = gvdmod.gvd_cells(d['free'], fr, fc, cfg.cusp_min_angle) & d['reach']
         d['cusps'] = gvdmod.cusp_cells(wide, np.where(d['vast'], np.inf, d['dist']), self.det)
 
-    # ------------------------------------------------------------------ Algorithm 1
+    # ------------------------------------------------------------------ graph and work
 
     def _plan(self, t):
-        """One round of Algorithm 1: refresh the graph, cover n, or move on to the next n."""
+        """One round of the grid planner: refresh the grid's graph, cover n, or move on."""
         self.t_plan = t
         d = self.decompose()
         self.last = d

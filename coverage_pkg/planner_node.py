@@ -1,6 +1,9 @@
-"""coverage_planner: Algorithm 1 (hierarchical decomposition coverage) as a ROS 2 node.
+"""coverage_planner: coverage with an extended-range detector as a ROS 2 node.
 
-A thin adapter around :class:`coverage_pkg.planner.CoveragePlanner` (all the math is there).
+A thin adapter (all the math is in the planners): ``planner:=paper`` runs Algorithm 1 of Acar,
+Choset and Lee driven by sensed events alone (:class:`coverage_pkg.algorithm1.PaperPlanner`,
+ablations with ``without``); ``planner:=grid`` the frontier-driven evidence-grid planner
+(ours, :class:`coverage_pkg.planner.CoveragePlanner`).
 Inputs, and nothing else (never the world file, never ground truth):
 
 * ``sonar/scan`` (sensor_msgs/LaserScan: one sweep of the sonar ring, REP 117 values; the
