@@ -143,9 +143,10 @@ def errors(cfg=None, EA=None, w=0.0, model='elastic', ki_dt=1.0, iterations=60,
             'open_loop_vector_m': (open_loop - target).tolist()}
 
 
-def error_table() -> list:
+def error_table(quick: bool = False) -> list:
     """Markdown rows: static trolley (= feed, the legs hold their nominal pose) error from
-    ignoring elasticity or sag, open loop and with terminal feedback."""
+    ignoring elasticity or sag, open loop and with terminal feedback (``quick``: the two
+    steel-rope rows only)."""
     cfg = load_config()
     EA_model = float(cfg.raw['cables']['EA'])
     rope_EA = axial_stiffness(0.006, 1.0e11)
@@ -161,7 +162,7 @@ def error_table() -> list:
             (f'6 mm steel rope, EA {rope_EA:.3g} N, {rope_w:.2f} N/m', rope_EA, rope_w,
              'elastic'),
             (f'6 mm steel rope, EA {rope_EA:.3g} N, {rope_w:.2f} N/m', rope_EA, rope_w,
-             'rigid')):
+             'rigid'))[4 if quick else 0:]:
         e = errors(cfg, EA, w, model)
         what = 'rigid cables (L0 = L)' if model == 'rigid' else 'elastic straight cable IK'
         rows.append(f"| {label} | {what} | {1000 * e['open_loop_m']:.1f} | "
