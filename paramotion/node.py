@@ -32,7 +32,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from paramotion.errors import ParameterError, UserError
-from paramotion.shutdown import ShutdownSignals, exit_now
+from paramotion.shutdown import ShutdownSignals, ShutdownWaker, exit_now
 
 _INT_LIMIT = 2 ** 62
 
@@ -239,13 +239,14 @@ def run_node(node_cls, args=None):
 
 
 def _run_node(node_cls, args, signals):
-    node = watchdog = None
+    node = watchdog = waker = None
     try:
         rclpy.init(args=args, signal_handler_options=signals.rclpy_options())
         node = node_cls()
         # A node on sim time in its own process warns once if its simulator stops.
         from paramotion.clock_watchdog import attach
         watchdog = attach(node)
+        waker = ShutdownWaker(node)
         signals.spinning()
         from paramotion.graph import spin_node  # the executor: $PARAMOTION_EXECUTOR
         spin_node(node)
@@ -263,6 +264,8 @@ def _run_node(node_cls, args, signals):
         print(f'error: {exc}', file=sys.stderr)
         sys.exit(2)
     finally:
+        if waker is not None:
+            waker.stop()
         if watchdog is not None:
             watchdog.stop()
         if node is not None:

@@ -35,6 +35,7 @@ import logging
 import os
 import signal
 import sys
+import threading
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
@@ -102,6 +103,40 @@ class ShutdownSignals:
         for sig, handler in self._previous.items():
             signal.signal(sig, handler)
         self._previous.clear()
+
+
+class ShutdownWaker:
+    """Wake ``node``'s executor once its context has been shut down.
+
+    rclpy's signal handler shuts the context down and wakes the executors from a thread of its
+    own; when two signals arrive together (a terminal Ctrl-C under launch), an executor can wake
+    before the context is shut down, go back to waiting and never hear of it: a node without a
+    timer (workspace monitor, Voronoi planner) then waits until launch escalates to SIGTERM. A
+    daemon thread checks the context every ``period`` wall seconds and, once it is shut down,
+    triggers a guard condition of the node, which ends the executor's wait.
+    """
+
+    def __init__(self, node, period=0.2):
+        self.node = node
+        self.period = float(period)
+        self._guard = node.create_guard_condition(lambda: None)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True,
+                                        name=f'shutdown_waker_{node.get_name()}')
+        self._thread.start()
+
+    def _run(self):
+        while not self._stop.wait(self.period):
+            if not self.node.context.ok():
+                try:
+                    self._guard.trigger()
+                except Exception:   # being destroyed: the executor has stopped anyway
+                    return
+
+    def stop(self):
+        """Stop the thread (before the node is destroyed)."""
+        self._stop.set()
+        self._thread.join(2.0)
 
 
 def exit_now(code=0):
