@@ -225,8 +225,8 @@ def write_report(out_dir: Path, quick: bool = False) -> list:
         '# Simplified Voronoi planning: measured results', '',
         f"Generated {start:%Y-%m-%d %H:%M} UTC on `{platform.node()}` "
         f"({platform.processor() or platform.machine()}, {os.cpu_count()} cores) by "
-        "`python -c 'from pathlib import Path; from voronoi_pkg.report import write_report; "
-        f"write_report(Path(\"docs/results\"){', quick=True' if quick else ''})'` in "
+        f"`paramotion report --only voronoi{' --quick' if quick else ''}` "
+        f"(`voronoi_pkg.report.write_report`) in "
         f"{wall / 60:.1f} min{' (quick: paper query and block scene)' if quick else ''}. "
         f'Python {sys.version.split()[0]}. Times are wall seconds on a machine shared with '
         'other jobs, CPU seconds in brackets.', '',
