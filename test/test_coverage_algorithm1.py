@@ -78,6 +78,7 @@ def test_rooms_and_corridor_are_covered_by_sensed_events_alone():
     assert set(prim) <= {'lap', 'boundary', 'gvd', 'transit'} and prim['gvd'] > 4.0
 
 
+@pytest.mark.slow                         # a closed-loop run, 10-25 s
 def test_obstacles_a_lap_runs_into_are_followed_and_their_slices_resumed_beyond():
     """A 15 x 15 m hall with four pillars 5 m apart: each pillar is met by a lap (a critical
     point: the slice splits), gets its own boundary circuit, and the slice is resumed on its

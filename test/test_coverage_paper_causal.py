@@ -37,6 +37,7 @@ def _near(path, xy):
     return float(np.min(np.hypot(p[:, 0] - xy[0], p[:, 1] - xy[1])))
 
 
+@pytest.mark.slow                     # two closed-loop runs, 15-30 s
 def test_suppressing_the_corridor_cusp_leaves_the_node_behind_it_uncreated():
     full = _run(DOOR_ROOMS)
     cut = _run(DOOR_ROOMS, event_filter=lambda kind, xy: not (
@@ -66,6 +67,7 @@ def test_an_injected_cusp_creates_a_node_and_an_edge_and_the_robot_goes_there():
     assert node.covered and _near(r['path'], target) < 0.3
 
 
+@pytest.mark.slow                     # two closed-loop runs, 15-30 s
 def test_suppressing_the_pillar_critical_point_leaves_the_morse_cell_unsplit():
     full = _run(ISLAND)
     vast = full['planner'].nodes[0]
@@ -97,6 +99,7 @@ def test_the_t_junction_meet_point_makes_the_robot_trace_both_branches(without, 
         assert not meets and sum(reached) == 1 and r['covered_fraction'] < 0.85
 
 
+@pytest.mark.slow                     # two closed-loop runs, 15-30 s
 def test_a_cusp_injected_into_the_scan_stream_creates_a_node_the_robot_goes_to():
     """One sweep taken on the room's boundary circuit, mid-wall, gets a phantom echo at
     delta - 0.05 m, 70 degrees off the wall's normal: to the ring the closest obstacle jumps
