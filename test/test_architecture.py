@@ -43,7 +43,7 @@ def test_algorithm_modules_do_not_import_rclpy():
 # is an algorithm module (or plain tooling) and must not mention rclpy at all.
 ROS_SIDE = ('_node', '.scenario', '.cli', '.bench', '.sweep', '.demo', '.launch', '.launch_xml',
             '.graph', '.node', '.qos', '.clock', '.clock_watchdog', '.sim', '.msgtypes',
-            '.ros_messages', '.qos_yaml', '.reader')
+            '.ros_messages', '.qos_yaml', '.reader', '.shutdown')
 
 
 def _imports_rclpy(path):
@@ -63,7 +63,7 @@ def test_no_module_outside_the_ros_side_imports_rclpy_even_lazily():
     """Found by walking the source, so a new algorithm module is covered without being listed:
     not even a function-level ``import rclpy`` outside nodes, plumbing and front ends."""
     checked, offenders = 0, []
-    for pkg in ('paramotion', 'coverage_pkg', 'climber_pkg', 'cable_robot_pkg'):
+    for pkg in ('paramotion',) + ROBOT_PACKAGES:
         for path in sorted((REPO / pkg).rglob('*.py')):
             rel = path.relative_to(REPO).with_suffix('')
             module = '.'.join(rel.parts)
@@ -77,6 +77,40 @@ def test_no_module_outside_the_ros_side_imports_rclpy_even_lazily():
     assert checked >= 60
     assert offenders == []
     assert set(ALGORITHMS) <= {m for m in ALGORITHMS if not m.endswith(ROS_SIDE)}
+
+
+ROBOT_PACKAGES = ('coverage_pkg', 'climber_pkg', 'cable_robot_pkg', 'voronoi_pkg')
+
+
+def _imported_modules(path):
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            yield from (a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.level == 0:
+            yield node.module or ''
+
+
+def test_the_shared_package_imports_no_robot_package():
+    """Issue 33: ``paramotion/`` holds only what every robot shares; the command line and the
+    report reach the robot packages by module name (importlib), never by an import."""
+    offenders = []
+    for path in sorted((REPO / 'paramotion').rglob('*.py')):
+        for name in _imported_modules(path):
+            if name.split('.')[0] in ROBOT_PACKAGES:
+                offenders.append(f'{path.relative_to(REPO)}: {name}')
+    assert offenders == []
+
+
+def test_every_paper_has_a_report_generator_wired_into_paramotion_report():
+    """Each part's measured results come from its own write_report, dispatched by name."""
+    import importlib
+
+    from paramotion.report import REPORTS
+    for part, module in REPORTS.items():
+        assert callable(getattr(importlib.import_module(module), 'write_report', None)), part
+    for pkg in ('coverage_pkg', 'climber_pkg', 'cable_robot_pkg.fast', 'cable_robot_pkg.cdrpm',
+                'voronoi_pkg'):
+        assert f'{pkg}.report' in REPORTS.values(), pkg
 
 
 def test_each_robot_has_one_room():
