@@ -9,10 +9,14 @@ structure's contour in the ring frame; the circle through the three points,
 gives the deviation (dx, dy) of the structure's centre from the ring centre and its radius R.
 Subtracting the first equation from the other two leaves a 2 x 2 linear system in (dx, dy).
 """
+from __future__ import annotations
+
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 
 class SensorDataError(ValueError):
@@ -29,7 +33,8 @@ class Correction:
     points: np.ndarray     # (3, 2) contour points in the ring frame
 
 
-def contour_points(distances, mount_radius, angles):
+def contour_points(distances: ArrayLike, mount_radius: float,
+                   angles: ArrayLike) -> np.ndarray:
     """Points (3, 2) hit by sensors at ``mount_radius`` and ``angles`` looking at the ring axis.
 
     Sensor i sits at ``mount_radius * (cos a_i, sin a_i)`` and measures along the inward radial
@@ -41,7 +46,7 @@ def contour_points(distances, mount_radius, angles):
     return np.stack([rho * np.cos(a), rho * np.sin(a)], axis=1)
 
 
-def circle_through_points(points):
+def circle_through_points(points: ArrayLike) -> tuple[float, float, float]:
     """(dx, dy, R) of the circle through three points (3, 2): eq. (5) solved exactly."""
     p = np.asarray(points, dtype=float)
     (x1, y1), (x2, y2), (x3, y3) = p
@@ -56,7 +61,8 @@ def circle_through_points(points):
     return float(dx), float(dy), float(radius)
 
 
-def check_distances(distances, min_range, max_range, names=('0', '1', '2')):
+def check_distances(distances: ArrayLike, min_range: float, max_range: float,
+                    names: Sequence[str] = ('0', '1', '2')) -> np.ndarray:
     """Refuse readings that are not a measured distance (REP 117 conventions).
 
     +inf = no echo, -inf = too close, NaN = invalid; anything outside [min_range, max_range]
@@ -78,7 +84,9 @@ def check_distances(distances, min_range, max_range, names=('0', '1', '2')):
     return d
 
 
-def correction(distances, mount_radius, angles, min_range=0.0, max_range=math.inf):
+def correction(distances: ArrayLike, mount_radius: float, angles: ArrayLike,
+               min_range: float = 0.0, max_range: float = math.inf) -> Correction:
+
     """The correction function: sensor distances -> deviation (dx, dy) and radius R, eq. (5)."""
     d = check_distances(distances, min_range, max_range)
     pts = contour_points(d, mount_radius, angles)

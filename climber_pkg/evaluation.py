@@ -6,12 +6,21 @@
   being a cylinder of ``inner_radius`` and ``thickness``) to the structure surface;
 * leg-trunk clearance: smallest distance from the leg axes (minus the leg radius) to it.
 """
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
 import numpy as np
+from numpy.typing import ArrayLike
+
+if TYPE_CHECKING:
+    from climber_pkg.robot import RobotConfig
+    from climber_pkg.trunk import Trunk
 
 RIM_SAMPLES = 72
 
 
-def centering_error(trunk, position, rotation):
+def centering_error(trunk: Trunk, position: ArrayLike, rotation: ArrayLike) -> float:
     """Distance (m) from the ring centre to where the axis crosses the ring plane (NaN: none)."""
     point, _ = trunk.axis_in_plane(position, np.asarray(rotation)[:, 2])
     if point is None:
@@ -19,13 +28,13 @@ def centering_error(trunk, position, rotation):
     return float(np.linalg.norm(point - np.asarray(position)))
 
 
-def ring_on_structure(trunk, position, margin=0.0):
+def ring_on_structure(trunk: Trunk, position: ArrayLike, margin: float = 0.0) -> bool:
     """True when the ring centre is alongside the structure (not above its top / below foot)."""
     s, _ = trunk.closest(np.asarray(position, dtype=float))
     return margin < float(s) < trunk.length - margin
 
 
-def bore_points(robot, position, rotation):
+def bore_points(robot: RobotConfig, position: ArrayLike, rotation: ArrayLike) -> np.ndarray:
     """Points on the two rim circles of a ring bore in the world frame (2 * RIM_SAMPLES, 3)."""
     ang = np.linspace(0, 2 * np.pi, RIM_SAMPLES, endpoint=False)
     circle = np.stack([np.cos(ang), np.sin(ang), np.zeros_like(ang)], 1) * robot.ring_inner_radius
@@ -34,7 +43,8 @@ def bore_points(robot, position, rotation):
     return np.asarray(position) + local @ np.asarray(rotation).T
 
 
-def ring_clearance(trunk, robot, position, rotation):
+def ring_clearance(trunk: Trunk, robot: RobotConfig, position: ArrayLike,
+                   rotation: ArrayLike) -> float:
     """Smallest bore-to-surface distance of one ring (m); +inf if the bore is off the trunk."""
     pts = bore_points(robot, position, rotation)
     on = trunk.inside_span(pts)
@@ -43,7 +53,9 @@ def ring_clearance(trunk, robot, position, rotation):
     return float(trunk.surface_clearance(pts[on]).min())
 
 
-def leg_clearance(trunk, robot, pose1, pose2, samples=12):
+def leg_clearance(trunk: Trunk, robot: RobotConfig, pose1: tuple[np.ndarray, np.ndarray],
+                  pose2: tuple[np.ndarray, np.ndarray], samples: int = 12) -> float:
+
     """Smallest leg-surface distance (m) with the legs as capsules of ``robot.leg_radius``."""
     geom = robot.geometry
     (p1, r1), (p2, r2) = pose1, pose2

@@ -10,9 +10,12 @@ wall-clock second and per CPU second of the process (the latter is not diluted b
 sharing the machine). Geometry: the climber's default parameter file. :func:`benchmark_fk`
 returns the headline figures for ``paramotion bench``.
 """
+from __future__ import annotations
+
 import argparse
 import statistics
 import time
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -20,7 +23,8 @@ from climber_pkg.robot import load_robot_config
 from paramotion import gough_stewart as gs
 
 
-def trajectory(geom, n, rng, step):
+def trajectory(geom: gs.GoughStewartGeometry, n: int, rng: np.random.Generator,
+               step: float) -> tuple[np.ndarray, np.ndarray]:
     """A smooth random pose trajectory (steps of about ``step`` m and ``step`` rad)."""
     home_h = 0.5 * (geom.leg_min + geom.leg_max)
     pos = np.array([0.0, 0.0, home_h]) + np.cumsum(rng.normal(scale=step, size=(n, 3)), axis=0)
@@ -41,7 +45,8 @@ def _rates(n, start):
     return n / (wall - start[0]), n / max(cpu - start[1], 1e-9)
 
 
-def bench_tracking(geom, lengths, pos, rot):
+def bench_tracking(geom: gs.GoughStewartGeometry, lengths: np.ndarray, pos: np.ndarray,
+                   rot: np.ndarray) -> tuple[tuple[float, float], np.ndarray]:
     p, r = pos[0], rot[0]
     iters = np.empty(len(lengths), dtype=int)
     t0 = _clocks()
@@ -52,7 +57,8 @@ def bench_tracking(geom, lengths, pos, rot):
     return _rates(len(lengths), t0), iters
 
 
-def bench_perturbed(geom, lengths, gpos, grot):
+def bench_perturbed(geom: gs.GoughStewartGeometry, lengths: np.ndarray, gpos: np.ndarray,
+                    grot: np.ndarray) -> tuple[tuple[float, float], np.ndarray]:
     iters = np.empty(len(lengths), dtype=int)
     t0 = _clocks()
     for k in range(len(lengths)):
@@ -71,7 +77,10 @@ def _batch_run(geom, lengths, gpos, grot, backend):
     return rate, out.iterations, float(np.abs(back - lengths).max())
 
 
-def run_benchmark(poses=20000, repeats=5, step=5e-4, backends=None):
+def run_benchmark(poses: int = 20000, repeats: int = 5, step: float = 5e-4,
+                  backends: list[str] | None = None
+                  ) -> tuple[dict[str, tuple[list[float], list[float], np.ndarray]],
+                             dict[str, float]]:
     """Measure every mode; returns ``{mode: (wall_rates, cpu_rates, iterations)}`` and worst.
 
     Modes: ``tracking`` and ``perturbed`` (single solves) and ``batch_<backend>`` for each
@@ -110,7 +119,7 @@ def run_benchmark(poses=20000, repeats=5, step=5e-4, backends=None):
     return out, worst
 
 
-def benchmark_fk(poses=20000, repeats=5):
+def benchmark_fk(poses: int = 20000, repeats: int = 5) -> dict[str, float | str]:
     """Headline FK figures for ``paramotion bench``: medians of ``repeats`` runs, wall clock.
 
     ``fk_single_per_s``: warm-started single solves along a trajectory; ``fk_batched_per_s``:
@@ -125,7 +134,8 @@ def benchmark_fk(poses=20000, repeats=5):
             'fk_batched_worst_round_trip_m': worst[f'batch_{backend}']}
 
 
-def main(argv=None):
+def main(argv: Sequence[str] | None = None) -> int:
+
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     parser.add_argument('--poses', type=int, default=20000, help='poses per run')
     parser.add_argument('--repeats', type=int, default=5, help='runs; the median is printed')

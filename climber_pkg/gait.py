@@ -37,11 +37,15 @@ Frames: poses are estimated in ``odom``, the initial frame of ring 1 (the planne
 world frame). Ring 1 is the base of the Gough-Stewart kinematics (universal joints), ring 2 the
 platform; the kinematics always take ring 2's pose in ring 1's frame.
 """
+from __future__ import annotations
+
 import enum
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from climber_pkg.correction import SensorDataError, correction
 from climber_pkg.prediction import (
@@ -75,7 +79,7 @@ CONSTRUCTS = ('correction', 'prediction')
 APPROACHES = ('paper', 'centres')
 
 
-def parse_without(value, name: str = 'without') -> tuple:
+def parse_without(value: str | Iterable[str] | None, name: str = 'without') -> tuple[str, ...]:
     """Constructs to switch off, from 'a,b' or a list of names; UserError names a bad one."""
     items = value.split(',') if isinstance(value, str) else list(value or ())
     names = sorted({str(x).strip() for x in items if str(x).strip()})
@@ -102,7 +106,7 @@ class GaitParams:
     max_relative_tilt: float = math.radians(25.0)  # ring-to-ring tilt limit, rad
     max_correction_tilt: float = math.radians(12.0)  # tilt a single correction may cause
     approach: str = 'centres'           # eq. (7) approach vector: 'centres' or 'paper'
-    without: tuple = ()                 # constructs switched off: 'correction', 'prediction'
+    without: tuple[str, ...] = ()       # constructs switched off: 'correction', 'prediction'
     edge_tolerance: float = 0.02        # partial echo loss counts as the top edge within this
     max_edge_steps: int = 2             # blind steps allowed across the top edge
     secant_baseline: float = 0.09       # shortest centre-to-centre secant for 'centres', m
@@ -122,7 +126,7 @@ class GaitParams:
             object.__setattr__(self, 'without', (self.without,) if self.without else ())
         object.__setattr__(self, 'without', tuple(sorted(set(self.without))))
 
-    def validate(self):
+    def validate(self) -> GaitParams:
         """Raise ValueError naming the first inconsistent parameter."""
         checks = [
             ('delta', 0.0 < self.delta <= 1.0, '(0, 1] m'),
@@ -168,7 +172,7 @@ class StatusUpdate:
     state: str
     message: str
     ok: bool
-    values: dict = field(default_factory=dict)
+    values: dict[str, object] = field(default_factory=dict)
 
 
 @dataclass
@@ -186,6 +190,11 @@ class StepRecord:
     position: np.ndarray
 
 
+#: Everything :meth:`ClimbingGait.tick` can ask the adapter to execute.
+Action = ClampCommand | LegCommand | PlannedPose | StatusUpdate
+
+
+
 def _inv(p, r):
     return -r.T @ p, r.T
 
@@ -197,8 +206,10 @@ def _compose(p1, r1, p2, r2):
 class ClimbingGait:
     """Event-driven implementation of steps 1-6; see the module docstring."""
 
-    def __init__(self, geometry, sensor_mount_radius, sensor_angles, sensor_min_range,
-                 sensor_max_range, bore_radius, params=None):
+    def __init__(self, geometry: gs.GoughStewartGeometry, sensor_mount_radius: float,
+                 sensor_angles: Iterable[float], sensor_min_range: float,
+                 sensor_max_range: float, bore_radius: float,
+                 params: GaitParams | None = None) -> None:
         self.geom = geometry
         self.mount = float(sensor_mount_radius)
         self.angles = tuple(sensor_angles)
@@ -239,15 +250,15 @@ class ClimbingGait:
         self.measure_log = []            # (t, ring) of every correction taken (evaluation)
 
     # ------------------------------------------------------------------ observations
-    def update_encoders(self, t, lengths):
+    def update_encoders(self, t: float, lengths: ArrayLike) -> None:
         self.lengths = np.asarray(lengths, dtype=float).reshape(6).copy()
         self.lengths_time = t
 
-    def update_clamp(self, t, ring, closed):
+    def update_clamp(self, t: float, ring: int, closed: bool) -> None:
         self.clamp_closed[ring] = bool(closed)
         self.clamp_time[ring] = t
 
-    def update_range(self, t, ring, index, value):
+    def update_range(self, t: float, ring: int, index: int, value: float) -> None:
         buf = self.ranges[ring][index]
         buf.append((t, float(value)))
         if len(buf) > 200:
@@ -255,11 +266,11 @@ class ClimbingGait:
 
     # ------------------------------------------------------------------ helpers
     @property
-    def finished(self):
+    def finished(self) -> bool:
         return self.state in (State.DONE, State.REFUSED, State.LOST)
 
     @property
-    def leading_ring(self):
+    def leading_ring(self) -> int:
         """The ring that goes first into unknown structure (upper when climbing)."""
         return RING1 if self.p.mode == 'descend' else RING2
 
@@ -391,7 +402,8 @@ class ClimbingGait:
         self._pending[-1].state = self.state.value
 
     # ------------------------------------------------------------------ main entry
-    def tick(self, t):
+    def tick(self, t: float) -> list[Action]:
+
         """Advance the state machine at time t (s); returns the actions to execute."""
         self._pending = []
         if self.finished:

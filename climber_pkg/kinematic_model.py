@@ -7,13 +7,23 @@ ray casts against the true structure, with optional noise and dropouts. This is 
 PyBullet node does with a dynamic closed chain; here it is instantaneous and exact, so planner
 logic can be exercised on many structures in seconds.
 """
+from __future__ import annotations
+
 import math
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-from climber_pkg.gait import RING1, RING2, ClampCommand, LegCommand
+from climber_pkg.gait import RING1, RING2, Action, ClampCommand, LegCommand
 from paramotion import gough_stewart as gs
 from paramotion.rotations import matrix_from_rotvec
+
+if TYPE_CHECKING:
+    from climber_pkg.gait import ClimbingGait, GaitParams
+    from climber_pkg.robot import RobotConfig
+    from climber_pkg.trunk import Trunk
 
 
 def start_direction(seed: int) -> tuple[float, float]:
@@ -23,8 +33,9 @@ def start_direction(seed: int) -> tuple[float, float]:
     return float(phi), float(psi)
 
 
-def initial_pose_on_trunk(trunk, robot, s_start: float, lengths, offset: float = 0.0,
-                          tilt: float = 0.0, seed: int = 0) -> tuple:
+def initial_pose_on_trunk(trunk: Trunk, robot: RobotConfig, s_start: float, lengths: ArrayLike,
+                          offset: float = 0.0, tilt: float = 0.0, seed: int = 0
+                          ) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
     """World poses of ring 1 (on the axis at ``s_start``) and ring 2 from the leg lengths.
 
     With ``offset`` (m) the robot is shifted off the axis, in ring 1's plane, and with ``tilt``
@@ -57,9 +68,11 @@ def initial_pose_on_trunk(trunk, robot, s_start: float, lengths, offset: float =
 class KinematicClimber:
     """World state of the robot: ring poses, clamps, leg lengths, sensor read-out."""
 
-    def __init__(self, trunk, robot, s_start=0.4, lengths=None, clamp_delay=0.5,
-                 noise=0.0, dropout=0.0, seed=0, start_offset=0.0, start_tilt=0.0,
-                 cone=True):
+    def __init__(self, trunk: Trunk, robot: RobotConfig, s_start: float = 0.4,
+                 lengths: ArrayLike | None = None, clamp_delay: float = 0.5,
+                 noise: float = 0.0, dropout: float = 0.0, seed: int = 0,
+                 start_offset: float = 0.0, start_tilt: float = 0.0,
+                 cone: bool = True) -> None:
         self.trunk = trunk
         self.robot = robot
         geom = robot.geometry
@@ -80,7 +93,7 @@ class KinematicClimber:
         self.moves_without_clamp = 0
         self._ray_cache = {}
 
-    def apply(self, t, action):
+    def apply(self, t: float, action: Action) -> None:
         if isinstance(action, ClampCommand):
             if action.close:
                 self._clamp_due[action.ring] = (t + self.clamp_delay, True)
@@ -90,7 +103,7 @@ class KinematicClimber:
         elif isinstance(action, LegCommand):
             self._move = (t + action.duration, np.asarray(action.lengths, dtype=float))
 
-    def advance(self, t):
+    def advance(self, t: float) -> None:
         for ring in (RING1, RING2):
             due = self._clamp_due[ring]
             if due is not None and t >= due[0]:
@@ -123,7 +136,7 @@ class KinematicClimber:
             inv_r = fk.rotation.T
             self.pose[RING1] = (p2 - r2 @ inv_r @ fk.position, r2 @ inv_r)
 
-    def ranges(self, ring):
+    def ranges(self, ring: int) -> np.ndarray:
         """Three distances of a ring's ultrasonic sensors (REP 117 conventions)."""
         p, r = self.pose[ring]
         key = (ring, p.tobytes(), r.tobytes())
@@ -140,8 +153,10 @@ class KinematicClimber:
         return out
 
 
-def run_gait(gait, model, dt=0.05, max_time=3000.0, sensor_period=0.05, on_tick=None,
-             until=None):
+def run_gait(gait: ClimbingGait, model: KinematicClimber, dt: float = 0.05,
+             max_time: float = 3000.0, sensor_period: float = 0.05,
+             on_tick: Callable[[float, list[Action]], None] | None = None,
+             until: Callable[[], bool] | None = None) -> float:
     """Close the loop between a ClimbingGait and a KinematicClimber until the gait finishes
     (or ``until()`` is true)."""
     t = 0.0
@@ -165,9 +180,12 @@ def run_gait(gait, model, dt=0.05, max_time=3000.0, sensor_period=0.05, on_tick=
     return t
 
 
-def climb_kinematic(trunk, robot, gait_params, *, start_offset=0.0, start_tilt=0.0, seed=0,
-                    noise=0.001, dropout=0.0, cone=True, s_start=0.4, max_time=None,
-                    off_axis_limit=0.02) -> dict:
+def climb_kinematic(trunk: Trunk, robot: RobotConfig, gait_params: GaitParams, *,
+                    start_offset: float = 0.0, start_tilt: float = 0.0, seed: int = 0,
+                    noise: float = 0.001, dropout: float = 0.0, cone: bool = True,
+                    s_start: float = 0.4, max_time: float | None = None,
+                    off_axis_limit: float = 0.02) -> dict[str, object]:
+
     """One ROS-free closed-loop climb (gait + ideal kinematic robot), evaluated on the truth.
 
     Returns the planner's outcome and, from the ground truth: the off-axis distance of the

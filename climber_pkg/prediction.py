@@ -23,22 +23,27 @@ itself: the line joining the previous and the new *measured centres* of the stru
 (``r + A [dx, dy, 0]`` at each step), i.e. the secant of the structure's axis. ``'paper'``
 is eq. (7) as printed.
 """
+from __future__ import annotations
+
 import math
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 
 class PredictionError(ValueError):
     """The prediction is undefined (zero displacement or approach parallel to y)."""
 
 
-def predict_position(position, rotation, dx, dy, delta):
+def predict_position(position: ArrayLike, rotation: ArrayLike, dx: float, dy: float,
+                     delta: float) -> np.ndarray:
     """Eq. (6): the new planned position of the moving ring in the reference frame."""
     return (np.asarray(position, dtype=float)
             + np.asarray(rotation, dtype=float) @ np.array([dx, dy, delta], dtype=float))
 
 
-def predict_orientation(prev_position, new_position, prev_rotation, descending=False):
+def predict_orientation(prev_position: ArrayLike, new_position: ArrayLike,
+                        prev_rotation: ArrayLike, descending: bool = False) -> np.ndarray:
     """Eqs. (7)-(8): rotation matrix [n, s, a] of the new planned pose."""
     step = np.asarray(new_position, dtype=float) - np.asarray(prev_position, dtype=float)
     norm = np.linalg.norm(step)
@@ -57,13 +62,15 @@ def predict_orientation(prev_position, new_position, prev_rotation, descending=F
     return np.stack([n, s, a], axis=1)
 
 
-def measured_centre(position, rotation, dx, dy):
+def measured_centre(position: ArrayLike, rotation: ArrayLike, dx: float,
+                    dy: float) -> np.ndarray:
     """The structure's centre in the reference frame, from the correction (dx, dy)."""
     return (np.asarray(position, dtype=float)
             + np.asarray(rotation, dtype=float) @ np.array([dx, dy, 0.0]))
 
 
-def predict_pose(position, rotation, dx, dy, delta, previous_centre=None):
+def predict_pose(position: ArrayLike, rotation: ArrayLike, dx: float, dy: float, delta: float,
+                 previous_centre: ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Eqs. (6)-(8) together: (new_position, new_rotation) of the moving ring.
 
     Without ``previous_centre`` this is the paper's eq. (7) verbatim. With it (the centre of the
@@ -85,14 +92,16 @@ def predict_pose(position, rotation, dx, dy, delta, previous_centre=None):
     return new_p, new_r
 
 
-def rotate_about_axis(rotation, angle):
+def rotate_about_axis(rotation: ArrayLike, angle: float) -> np.ndarray:
     """Turn a ring frame about its own z axis (the structure axis after centering)."""
     c, s = math.cos(angle), math.sin(angle)
     rz = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
     return np.asarray(rotation, dtype=float) @ rz
 
 
-def limit_correction(dx, dy, delta, max_tilt):
+def limit_correction(dx: float, dy: float, delta: float,
+                     max_tilt: float) -> tuple[float, float]:
+
     """Scale (dx, dy) so that the approach vector tilts at most ``max_tilt`` rad from z.
 
     A large deviation corrected in one step of length Delta would tilt the ring by

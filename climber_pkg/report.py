@@ -11,6 +11,8 @@ kinematic robot, ultrasonic cones with 1 mm noise), evaluated on the true struct
 3. the bias of the ultrasonic cone on eq. (5), and its effect in the loop;
 4. the paper's 49-coordinate forward kinematics against the 7-unknown leg-length solve.
 """
+from __future__ import annotations
+
 import dataclasses
 import datetime
 import math
@@ -18,6 +20,7 @@ import os
 import platform
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -84,8 +87,10 @@ HEADER = ['| structure | length m | planner | reached s m | top | off-axis at st
           '|---|---|---|---|---|---|---|---|---|']
 
 
-def cone_bias(fovs=(0.0, 0.10, 0.35, 0.6), offsets=(0.0, 0.01, 0.02, 0.04),
-              tilts_deg=(0.0, 3.0, 6.0)) -> dict:
+def cone_bias(fovs: Sequence[float] = (0.0, 0.10, 0.35, 0.6),
+              offsets: Sequence[float] = (0.0, 0.01, 0.02, 0.04),
+              tilts_deg: Sequence[float] = (0.0, 3.0, 6.0)
+              ) -> dict[float, dict[tuple[float, float], float]]:
     """Largest error (m) of eq. (5)'s centre over ring offsets and tilts on a straight trunk of
     0.2 m radius, per field of view (0 = thin ray); the tilt alone makes the section elliptic,
     the cone makes each sensor read the nearest point in its cone instead of its centre line.
@@ -160,7 +165,7 @@ def _plot(path, series, trunk_name):
     plt.close(fig)
 
 
-def write_report(out_dir: Path, quick: bool = False) -> list:
+def write_report(out_dir: Path, quick: bool = False) -> list[Path]:
     """Rerun the climber's measurements; write ``out_dir/climber.md`` and its PNG; return the
     paths written. ``quick``: two generated structures and a smaller bias grid."""
     out_dir = Path(out_dir)

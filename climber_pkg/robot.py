@@ -5,6 +5,8 @@ robot's dimensions for the simulator, the ultrasonic sensors and the planner. Fr
 frame has its origin at the centre of its joint circle, z along the ring axis (up the trunk for
 ring 1 and ring 2 alike), x towards the first sensor gap; joints and sensors lie in z = 0.
 """
+from __future__ import annotations
+
 import math
 import os
 from dataclasses import dataclass
@@ -31,20 +33,20 @@ class RobotConfig:
     leg_mass: float
     leg_max_speed: float
     sensor_mount_radius: float
-    sensor_angles: tuple          # rad, in the ring frame
+    sensor_angles: tuple[float, float, float]  # rad, in the ring frame
     sensor_min_range: float
     sensor_max_range: float
     sensor_fov: float
     clamp_close_time: float
     clamp_open_time: float
 
-    def sensor_rays(self):
+    def sensor_rays(self) -> tuple[np.ndarray, np.ndarray]:
         """Sensor origins (3, 3) and unit directions (3, 3) in the ring frame (inward, z = 0)."""
         ang = np.asarray(self.sensor_angles)
         radial = np.stack([np.cos(ang), np.sin(ang), np.zeros(3)], axis=1)
         return self.sensor_mount_radius * radial, -radial
 
-    def max_trunk_radius(self, margin=0.0):
+    def max_trunk_radius(self, margin: float = 0.0) -> float:
         """Largest trunk radius the bore admits with the given radial margin."""
         return self.ring_inner_radius - margin
 
@@ -68,7 +70,8 @@ def _num(tree, path, source, lo=0.0, hi=math.inf, lo_open=True):
     return float(value)
 
 
-def load_robot_config(path=None):
+def load_robot_config(path: str | os.PathLike[str] | None = None) -> RobotConfig:
+
     """Read and validate the robot parameter file; raises UserError naming the bad key."""
     path = path or DEFAULT_CONFIG
     try:

@@ -11,17 +11,22 @@ clearances to the surface, leg lengths against the stroke, the true configuratio
 condition, and the clamp invariant (at least one clamp closed at every simulator
 publish period, 20 ms).
 """
+from __future__ import annotations
+
+import argparse
 import datetime
 import math
 import os
 import time
+from collections.abc import Iterable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from climber_pkg import evaluation as ev
 from climber_pkg.gait import APPROACHES, CONSTRUCTS, parse_without
-from climber_pkg.robot import load_robot_config
+from climber_pkg.robot import RobotConfig, load_robot_config
 from climber_pkg.trunk import Trunk
 from paramotion import gough_stewart as gs
 from paramotion.errors import UserError
@@ -29,13 +34,18 @@ from paramotion.launch_xml import load as load_launch
 from paramotion.launch_xml import recorded_topics
 from paramotion.scenario_io import add_output_args, output_dir, write_json
 
+if TYPE_CHECKING:
+    from climber_pkg.gait import ClimbingGait
+    from climber_pkg.sim_node import ClimberSimNode
+
 # The graph (nodes, parameters, recorded topics) is described once, in
 # launch/climber.launch.xml; this runner composes it in one process.
 LAUNCH_FILE = 'climber'
 TOPICS = recorded_topics(load_launch(LAUNCH_FILE, {'record': True}))
 
 
-def check_trunk_fits(trunk, robot, path, margin=0.03):
+def check_trunk_fits(trunk: Trunk, robot: RobotConfig, path: str | Path,
+                     margin: float = 0.03) -> None:
     """UserError unless the structure passes through the ring bore with ``margin``."""
     limit = robot.ring_inner_radius - margin
     if trunk.max_radius > limit:
@@ -45,13 +55,13 @@ def check_trunk_fits(trunk, robot, path, margin=0.03):
                         f'm bore - {margin} m margin = {limit:.3f} m)')
 
 
-def turn_angle(rot0, rot1):
+def turn_angle(rot0: np.ndarray, rot1: np.ndarray) -> float:
     """Signed rotation (deg) of a ring about its own axis between two orientations."""
     x0, x1, z = rot0[:, 0], rot1[:, 0], rot1[:, 2]
     return math.degrees(math.atan2(float(np.cross(x0, x1) @ z), float(x0 @ x1)))
 
 
-def geom_span(robot):
+def geom_span(robot: RobotConfig) -> float:
     """Height of the robot at its shortest legs plus a step: the room it needs to start."""
     return robot.geometry.leg_max
 
@@ -62,7 +72,8 @@ class ClimbMonitor:
     measures it, and every ``sample_every`` periods the ring and leg clearances, leg lengths,
     the Jacobian condition and the ring paths for the figure."""
 
-    def __init__(self, sim, gait, trunk, robot, sample_every):
+    def __init__(self, sim: ClimberSimNode, gait: ClimbingGait, trunk: Trunk,
+                 robot: RobotConfig, sample_every: int) -> None:
         self.sim, self.gait, self.trunk, self.robot = sim, gait, trunk, robot
         self.sample_every = sample_every
         self.k = 0
@@ -75,7 +86,7 @@ class ClimbMonitor:
                       'min_leg_length': math.inf, 'max_leg_length': -math.inf,
                       'max_condition': 0.0, 'both_clamps_open_samples': 0, 'samples': 0}
 
-    def __call__(self):
+    def __call__(self) -> None:
         sim, stats = self.sim, self.stats
         self.k += 1
         if not (sim.clamp_closed[0] or sim.clamp_closed[1]):
@@ -186,11 +197,15 @@ def _climb_result(trunk_file, trunk, robot, sim, gait, monitor, outcome, start_p
     return result
 
 
-def run_climb(trunk_file, bag_dir=None, delta=0.10, cycles=0, max_time=None, noise=0.001,
-              dropout=0.0, fault=0.0, start_s=0.4, seed=1, robot_config='', publish_period=0.02,
-              sample_every=5, domain_id=None, physics_dt=0.002, mode='climb',
-              turn_deg=0.0, start_length=None, approach='centres', without=(),
-              start_offset=0.0, start_tilt=0.0):
+def run_climb(trunk_file: str | Path, bag_dir: str | Path | None = None, delta: float = 0.10,
+              cycles: int = 0, max_time: float | None = None, noise: float = 0.001,
+              dropout: float = 0.0, fault: float = 0.0, start_s: float = 0.4, seed: int = 1,
+              robot_config: str = '', publish_period: float = 0.02, sample_every: int = 5,
+              domain_id: int | None = None, physics_dt: float = 0.002, mode: str = 'climb',
+              turn_deg: float = 0.0, start_length: float | None = None,
+              approach: str = 'centres', without: str | Iterable[str] | None = (),
+              start_offset: float = 0.0, start_tilt: float = 0.0
+              ) -> tuple[dict[str, object], dict[str, object], Trunk]:
     """Run the climbing graph of ``climber.launch.xml`` in one process, lock-step, until the
     planner's gait is finished or ``max_time``; returns (result dict, trace dict for
     plotting, trunk). ``start_offset`` (m) and ``start_tilt`` (deg) start the robot off the
@@ -227,7 +242,8 @@ def run_climb(trunk_file, bag_dir=None, delta=0.10, cycles=0, max_time=None, noi
     return result, trace, trunk
 
 
-def plot_climb(path, trunk, trace, result):
+def plot_climb(path: str | Path, trunk: Trunk, trace: dict[str, object],
+               result: dict[str, object]) -> None:
     """climb.png: the structure and the ring paths in 3-D, and the centering error."""
     import matplotlib
     matplotlib.use('Agg')
@@ -375,11 +391,12 @@ def _run(args):
     return 0 if r['success'] else 1
 
 
-def centering_list(result):
+def centering_list(result: dict[str, object]) -> list[float]:
     return result['centering_error_per_step_m']
 
 
-def register(subparsers):
+def register(subparsers: argparse._SubParsersAction) -> None:
+
     """Add ``paramotion climb``."""
     stamp = datetime.datetime.now().strftime('%Y%m%d-%H%M%S')
     parser = subparsers.add_parser(

@@ -10,9 +10,13 @@ Used by the simulator (collision geometry), the simulated ultrasonic sensors (ra
 evaluation (centering error, clearance). Never by the planner: it knows only its encoders and
 its ultrasonic sensors.
 """
+from __future__ import annotations
+
 import math
+from pathlib import Path
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.interpolate import CubicSpline
 from scipy.spatial import cKDTree
 
@@ -26,7 +30,8 @@ SAMPLE_STEP = 0.005
 class Trunk:
     """Smooth tube: centreline c(s), unit tangent t(s), radius r(s), s in [0, length]."""
 
-    def __init__(self, centerline, radius, name='trunk', source='trunk'):
+    def __init__(self, centerline: list[list[float]], radius: float | list[list[float]],
+                 name: str = 'trunk', source: str = 'trunk') -> None:
         pts = _validate_centerline(centerline, source)
         self.name = str(name)
         self.source = source
@@ -54,13 +59,13 @@ class Trunk:
 
     # ---------------------------------------------------------------- construction
     @classmethod
-    def from_file(cls, path):
+    def from_file(cls, path: str | Path) -> Trunk:
         """Load and validate a structure JSON file; UserError names the file and the problem."""
         data = load_json_object(path, 'trunk file')
         return cls.from_dict(data, source=f'trunk file {path}')
 
     @classmethod
-    def from_dict(cls, data, source='trunk'):
+    def from_dict(cls, data: object, source: str = 'trunk') -> Trunk:
         if not isinstance(data, dict):
             raise UserError(f'{source}: expected a JSON object')
         for key in ('centerline', 'radius'):
@@ -71,7 +76,7 @@ class Trunk:
             raise UserError(f'{source}: units must be "m", got {units!r}')
         return cls(data['centerline'], data['radius'], data.get('name', 'trunk'), source)
 
-    def to_dict(self):
+    def to_dict(self) -> dict[str, object]:
         """A structure-file object equivalent to this trunk (for generated test trunks)."""
         return {'name': self.name, 'units': 'm',
                 'centerline': self.points[::20].tolist() + [self.points[-1].tolist()],
@@ -79,32 +84,33 @@ class Trunk:
                            for s, r in zip(self._radius_s, self._radius_r)]}
 
     # ---------------------------------------------------------------- queries along s
-    def radius_at(self, s):
+    def radius_at(self, s: ArrayLike) -> np.ndarray | float:
         """Radius at arc length s (linear between the file's [s, r] pairs, held at the ends)."""
         return np.interp(s, self._radius_s, self._radius_r)
 
-    def point_at(self, s):
+    def point_at(self, s: ArrayLike) -> np.ndarray:
         s = np.clip(s, 0.0, self.length)
         return np.stack([np.interp(s, self.s, self.points[:, k]) for k in range(3)], -1)
 
-    def tangent_at(self, s):
+    def tangent_at(self, s: ArrayLike) -> np.ndarray:
         s = np.clip(s, 0.0, self.length)
         t = np.stack([np.interp(s, self.s, self.tangents[:, k]) for k in range(3)], -1)
         return t / np.linalg.norm(t, axis=-1, keepdims=True)
 
     @property
-    def top(self):
+    def top(self) -> np.ndarray:
         return self.points[-1]
 
     @property
-    def max_radius(self):
+    def max_radius(self) -> float:
         return float(self.radii.max())
 
     @property
-    def max_curvature(self):
+    def max_curvature(self) -> float:
         return float(self.curvature.max())
 
-    def frame_at(self, s, x_hint=(1.0, 0.0, 0.0)):
+    def frame_at(self, s: float,
+                 x_hint: ArrayLike = (1.0, 0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
         """Position and rotation (columns x, y, z = tangent) of a frame on the axis at s."""
         p = self.point_at(s)
         z = self.tangent_at(s)
@@ -115,7 +121,7 @@ class Trunk:
         return p, np.stack([x, np.cross(z, x), z], axis=1)
 
     # ---------------------------------------------------------------- spatial queries
-    def closest(self, points):
+    def closest(self, points: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Arc length of the closest axis point and distance to the axis, for points (..., 3).
 
         Points beyond the ends project onto the end caps' planes' nearest axis point (s clamped).
@@ -139,17 +145,18 @@ class Trunk:
         shape = pts.shape[:-1]
         return best_s.reshape(shape), best_d.reshape(shape)
 
-    def surface_clearance(self, points):
+    def surface_clearance(self, points: ArrayLike) -> np.ndarray:
         """Signed distance from points to the tube surface (negative inside the trunk)."""
         s, d = self.closest(points)
         return d - self.radius_at(s)
 
-    def inside_span(self, points):
+    def inside_span(self, points: ArrayLike) -> np.ndarray:
         """True where the closest axis point lies strictly between the foot and the top."""
         s, _ = self.closest(points)
         return (s > 0.0) & (s < self.length)
 
-    def axis_in_plane(self, origin, normal, s_guess=None):
+    def axis_in_plane(self, origin: ArrayLike, normal: ArrayLike, s_guess: float | None = None
+                      ) -> tuple[np.ndarray, float] | tuple[None, None]:
         """Where the centreline crosses the plane (origin, normal): (point, s) or (None, None).
 
         Searches the crossing nearest to ``s_guess`` (default: the arc length closest to
@@ -169,7 +176,8 @@ class Trunk:
         s = self.s[k] + t * (self.s[k + 1] - self.s[k])
         return self.point_at(s), float(s)
 
-    def ray_distance(self, origins, directions, max_range, iterations=4):
+    def ray_distance(self, origins: ArrayLike, directions: ArrayLike, max_range: float,
+                     iterations: int = 4) -> np.ndarray:
         """Distance along each ray (n, 3) to the tube surface; +inf when none within max_range.
 
         Intersects each ray with the cylinder tangent to the tube at the axis point closest to
@@ -219,7 +227,8 @@ class Trunk:
         return out
 
 
-    def cone_distance(self, origins: np.ndarray, directions: np.ndarray, field_of_view: float,
+    def cone_distance(self, origins: ArrayLike, directions: ArrayLike, field_of_view: float,
+
                       max_range: float, boundary_rays: int = 24) -> np.ndarray:
         """Nearest echo within each sensor's cone (n, 3): +inf when none within max_range.
 
