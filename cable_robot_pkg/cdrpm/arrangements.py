@@ -32,12 +32,17 @@ Three searches:
    ``kntu_neuron.yaml``, an arrangement fitted to Table II and the TOW box (not the paper's
    anchors, which are not published).
 """
+from __future__ import annotations
+
 import itertools
+from collections.abc import Callable, Iterable, Sequence
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from cable_robot_pkg.cdrpm.collisions import check_pose, classify_poses
-from cable_robot_pkg.cdrpm.description import description_from_dict
+from cable_robot_pkg.cdrpm.description import RobotDescription, description_from_dict
 from cable_robot_pkg.cdrpm.kinematics import rotation_matrix_deg
 from cable_robot_pkg.cdrpm.workspace import grid_axes, grid_points
 from cable_robot_pkg.cdrpm.wrench_closure import wrench_closure
@@ -48,9 +53,14 @@ CORNERS = np.array([(sx, sy, sz) for sz in (1, -1) for sy in (1, -1) for sx in (
 HALF_TURN_X = np.array([1.0, -1.0, -1.0])
 HALF_TURN_Y = np.array([-1.0, 1.0, -1.0])
 MIRROR_Z = np.array([1.0, 1.0, -1.0])
+#: How the searches evaluate independent candidates: ``map_cases(fn, cases)`` returns
+#: ``[fn(case) for case in cases]`` in order (serially or with :func:`paramotion.sweep.run_tasks`).
+MapCases = Callable[[Callable[[Any], Any], list[Any]], list[Any]]
 
 
-def pairing_description(perm, frame_half_size, platform_half_size, cable_radius, name=None):
+def pairing_description(perm: Sequence[int], frame_half_size: ArrayLike,
+                        platform_half_size: ArrayLike, cable_radius: float,
+                        name: str | None = None) -> RobotDescription:
     """Robot description joining platform corner k to frame corner ``perm[k]``."""
     perm = list(perm)
     return description_from_dict({
@@ -62,19 +72,19 @@ def pairing_description(perm, frame_half_size, platform_half_size, cable_radius,
         'cable_radius': float(cable_radius)})
 
 
-def admissible(perm):
+def admissible(perm: Sequence[int]) -> bool:
     """Every cable has an outward direction component at its platform corner."""
     return bool(np.all(np.any(CORNERS[list(perm)] == CORNERS, axis=1)))
 
 
-def invariant(perm, signs):
+def invariant(perm: Sequence[int], signs: np.ndarray) -> bool:
     """Is the set of cables invariant under the sign flip ``signs`` (a half turn or mirror)?"""
     cables = {(tuple(CORNERS[k]), tuple(CORNERS[p])) for k, p in enumerate(perm)}
     return {(tuple(np.array(b) * signs), tuple(np.array(a) * signs))
             for b, a in cables} == cables
 
 
-def candidate_pairings():
+def candidate_pairings() -> list[tuple[tuple[int, ...], bool, bool]]:
     """Admissible pairings with the half-turn symmetry of section IV-A and no z mirror."""
     out = []
     for perm in itertools.permutations(range(8)):
@@ -86,8 +96,10 @@ def candidate_pairings():
     return out
 
 
-def score_pairings(frame_half_size, platform_half_size, cable_radius, step=0.2,
-                   pairings=None, progress=False):
+def score_pairings(frame_half_size: ArrayLike, platform_half_size: ArrayLike,
+                   cable_radius: float, step: float = 0.2,
+                   pairings: Sequence[tuple[Sequence[int], bool, bool]] | None = None,
+                   progress: bool = False) -> list[dict[str, object]]:
     """Score pairings at zero rotation on a grid: list of dicts, best wrench closure first."""
     pairings = candidate_pairings() if pairings is None else pairings
     rows = []
@@ -113,7 +125,7 @@ def score_pairings(frame_half_size, platform_half_size, cable_radius, step=0.2,
     return rows
 
 
-def pairing_of(desc):
+def pairing_of(desc: RobotDescription) -> list[int] | None:
     """The corner pairing of a corner-to-corner description, or None."""
     if desc.n_cables != 8:
         return None
@@ -148,7 +160,7 @@ D2 = (np.ones(3), HALF_TURN_X, HALF_TURN_Y, HALF_TURN_X * HALF_TURN_Y)
 GENERATOR_CORNERS = np.array([[1.0, 1.0, 1.0], [-1.0, 1.0, 1.0]])
 
 
-def edge_anchor_candidates(frame_half_size, pitch):
+def edge_anchor_candidates(frame_half_size: ArrayLike, pitch: float) -> np.ndarray:
     """Points on the 12 edges of the frame box, at whole multiples of ``pitch`` (m) from an end.
 
     Includes the corners. Returns an (m, 3) array without duplicates.
@@ -174,7 +186,7 @@ def edge_anchor_candidates(frame_half_size, pitch):
     return np.array(sorted(points))
 
 
-def symmetric_cables(anchor0, anchor1):
+def symmetric_cables(anchor0: ArrayLike, anchor1: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """The eight (platform corner signs, frame anchor) cables generated under D2.
 
     The cable of platform corner (+,+,+) goes to ``anchor0`` and that of (-,+,+) to
@@ -191,8 +203,9 @@ def symmetric_cables(anchor0, anchor1):
     return signs[order], anchors[order]
 
 
-def symmetric_description(anchor0, anchor1, frame_half_size, platform_half_size, cable_radius,
-                          name='edge_arrangement'):
+def symmetric_description(anchor0: ArrayLike, anchor1: ArrayLike, frame_half_size: ArrayLike,
+                          platform_half_size: ArrayLike, cable_radius: float,
+                          name: str = 'edge_arrangement') -> RobotDescription:
     """Robot description of the D2-symmetric arrangement generated by two frame anchors."""
     signs, anchors = symmetric_cables(anchor0, anchor1)
     return description_from_dict({
@@ -233,7 +246,8 @@ def _box_symmetries(frame_half_size, platform_half_size):
     return out
 
 
-def arrangement_properties(signs, anchors, platform_half_size):
+def arrangement_properties(signs: np.ndarray, anchors: np.ndarray,
+                           platform_half_size: ArrayLike) -> dict[str, bool]:
     """Properties the paper asks of the Neuron, checked on an arrangement.
 
     ``opposite``: every cable is anchored on the opposite side of the platform along at least
@@ -251,7 +265,8 @@ def arrangement_properties(signs, anchors, platform_half_size):
     return {'opposite': opposite, 'outward': outward, 'chiral': chiral, 'distinct': distinct}
 
 
-def home_check(desc, orientations_deg=((0.0, 0.0, 0.0),)):
+def home_check(desc: RobotDescription, orientations_deg: ArrayLike = ((0.0, 0.0, 0.0),)
+               ) -> tuple[bool, bool, float]:
     """Wrench closure and collisions at the home position (centroid at O).
 
     Returns ``(closed, collision_free, min_gap_m)``: wrench-closed and collision-free at every
@@ -266,7 +281,8 @@ def home_check(desc, orientations_deg=((0.0, 0.0, 0.0),)):
     return closed, free, float(np.min(report.clearance))
 
 
-def grid_scores(desc, points, rotation=None):
+def grid_scores(desc: RobotDescription, points: ArrayLike,
+                rotation: ArrayLike | None = None) -> tuple[float, float, float]:
     """Shares (%) of ``points`` that are collision-free and wrench-closed, free, closed."""
     rotation = np.eye(3) if rotation is None else rotation
     free = classify_poses(desc, points, rotation) == 0
@@ -279,7 +295,8 @@ def grid_scores(desc, points, rotation=None):
 SCORE_THETA_DEG = (30.0, 30.0, 10.0)
 
 
-def box_scores(desc, points, rotations):
+def box_scores(desc: RobotDescription, points: np.ndarray,
+               rotations: np.ndarray) -> tuple[float, float, float]:
     """Shares (%) of the (point, orientation) pairs that are collision-free and wrench-closed,
     collision-free, and wrench-closed: a sampled measure of the 6-D workspace."""
     both = free_n = closed_n = 0
@@ -322,11 +339,15 @@ def _edge_final_case(case):
             'home_min_gap_m': gap}
 
 
-def search_edge_arrangements(frame_half_size, platform_half_size, cable_radius, pitch=0.1,
-                             min_home_gap=0.02, theta_deg=SCORE_THETA_DEG,
-                             home_angle_step_deg=10.0, coarse_step=0.4,
-                             coarse_angle_step_deg=60.0, step=0.2, angle_step_deg=10.0,
-                             keep=40, progress=False, map_cases=None):
+def search_edge_arrangements(frame_half_size: ArrayLike, platform_half_size: ArrayLike,
+                             cable_radius: float, pitch: float = 0.1,
+                             min_home_gap: float = 0.02,
+                             theta_deg: Sequence[float] = SCORE_THETA_DEG,
+                             home_angle_step_deg: float = 10.0, coarse_step: float = 0.4,
+                             coarse_angle_step_deg: float = 60.0, step: float = 0.2,
+                             angle_step_deg: float = 10.0, keep: int = 40,
+                             progress: bool = False, map_cases: MapCases | None = None
+                             ) -> tuple[list[dict[str, object]], dict[str, int]]:
     """Search the D2-symmetric edge-anchored arrangements; best first.
 
     Candidates: every pair of frame anchors from :func:`edge_anchor_candidates` (``pitch``)
@@ -443,7 +464,8 @@ def _home_candidates(frame_half_size, platform_half_size, cable_radius, pitch, m
     return out
 
 
-def table2_in_frame(desc, points, rotations_deg=None):
+def table2_in_frame(desc: RobotDescription, points: np.ndarray,
+                    rotations_deg: Iterable[Sequence[float]] | None = None) -> np.ndarray:
     """Collision-free share (%) of the in-frame ``points`` at each Table II orientation.
 
     This is the measure comparable with the paper's Table II: the paper checks collisions
@@ -486,10 +508,15 @@ def _table2_case(case):
                'home_min_gap_m': gap}
 
 
-def search_table2_arrangements(frame_half_size, platform_half_size, cable_radius, pitch=0.1,
-                               min_home_gap=0.02, screen_step=0.2, screen_tolerance=8.0,
-                               step=0.05, tolerance=5.0, tow_step=0.1, tow_box_m=None,
-                               progress=False, map_cases=None):
+def search_table2_arrangements(frame_half_size: ArrayLike, platform_half_size: ArrayLike,
+                               cable_radius: float, pitch: float = 0.1,
+                               min_home_gap: float = 0.02, screen_step: float = 0.2,
+                               screen_tolerance: float = 8.0, step: float = 0.05,
+                               tolerance: float = 5.0, tow_step: float = 0.1,
+                               tow_box_m: Sequence[float] | None = None,
+                               progress: bool = False, map_cases: MapCases | None = None
+                               ) -> tuple[list[dict[str, object]], dict[str, int]]:
+
     """Fit the Neuron to the paper's published workspace results; best first.
 
     The paper gives no anchor coordinates but measures its arrangement: Table II (share of

@@ -30,9 +30,14 @@ Three collision types (plus two geometric facts reported separately, never as co
 - **outside frame**: the platform box is not inside the fixed frame; such a pose is reported as
   outside and not tested for collisions.
 """
+from __future__ import annotations
+
+from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from cable_robot_pkg.cdrpm.kinematics import (
     FRAME_TOL,
@@ -41,6 +46,9 @@ from cable_robot_pkg.cdrpm.kinematics import (
     platform_extent,
 )
 from paramotion.backend import resolve_backend
+
+if TYPE_CHECKING:
+    from cable_robot_pkg.cdrpm.description import RobotDescription
 
 #: Collision types, in the order of the bit flags of :func:`classify_poses`.
 COLLISION_TYPES = ('cable_cable', 'cable_body', 'cable_workpiece', 'platform_workpiece')
@@ -74,7 +82,8 @@ def _cross(u, v):
                      u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]], axis=-1)
 
 
-def segment_distance(p0, d1, q0, d2):
+def segment_distance(p0: ArrayLike, d1: ArrayLike, q0: ArrayLike,
+                     d2: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Exact distance between segments ``p0 + s d1`` and ``q0 + t d2``, s, t in [0, 1].
 
     Arrays broadcast over leading dimensions, last dimension 3. Returns ``(dist, s, t)``: the
@@ -124,7 +133,8 @@ def segment_distance(p0, d1, q0, d2):
     return best, best_s, best_t
 
 
-def segment_box_hit(p0, d, lo, hi):
+def segment_box_hit(p0: np.ndarray, d: np.ndarray, lo: ArrayLike,
+                    hi: ArrayLike) -> np.ndarray:
     """True where segment ``p0 + t d`` (t in [0, 1]) meets the open box (lo, hi) (slab method)."""
     t_enter = np.zeros(p0.shape[:-1])
     t_exit = np.ones(p0.shape[:-1])
@@ -144,7 +154,8 @@ def segment_box_hit(p0, d, lo, hi):
     return hit & (t_enter < t_exit)
 
 
-def obb_aabb_overlap(centres, rotations, half, lo, hi):
+def obb_aabb_overlap(centres: ArrayLike, rotations: ArrayLike, half: ArrayLike,
+                     lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """True where the oriented platform box overlaps the axis-aligned box [lo, hi] (SAT)."""
     centres = np.atleast_2d(centres)
     rot = np.broadcast_to(rotations, (centres.shape[0], 3, 3))
@@ -173,14 +184,14 @@ class PoseCheck:
     lengths: np.ndarray            # (n,) cable lengths
     pair_distance: np.ndarray      # (P,) segment distances of the checked pairs
     pairs: np.ndarray              # (P, 2) cable indices of the checked pairs
-    colliding_pairs: list          # [(i, j, distance)] closer than 2*epsilon
-    body_cables: list              # cables whose D_i is inside the platform
-    workpiece_cables: list         # cables through the workpiece
+    colliding_pairs: list[tuple[int, int, float]]  # closer than 2*epsilon
+    body_cables: list[int]         # cables whose D_i is inside the platform
+    workpiece_cables: list[int]    # cables through the workpiece
     platform_workpiece: bool
     clearance: np.ndarray          # (n,) per cable: min surface gap to any other cable (m)
 
     @property
-    def collision_free(self):
+    def collision_free(self) -> bool:
         """True when the pose is inside the frame and has no collision of any type."""
         return (self.inside_frame and not self.colliding_pairs and not self.body_cables
                 and not self.workpiece_cables and not self.platform_workpiece)
@@ -265,7 +276,7 @@ class _SharedRotationScreen:
         return wn * wn <= self.limit * (np.abs(nn) * (1.0 + SCREEN_SLACK) + 1e-9)
 
 
-def check_without(without) -> frozenset:
+def check_without(without: Iterable[str] | None) -> frozenset[str]:
     """Validated set of construct names to switch off (see :data:`CONSTRUCTS`)."""
     names = frozenset(without or ())
     unknown = sorted(names - set(CONSTRUCTS))
@@ -275,7 +286,7 @@ def check_without(without) -> frozenset:
     return names
 
 
-def top_plane_hit(p0, d, lo, hi):
+def top_plane_hit(p0: ArrayLike, d: ArrayLike, lo: ArrayLike, hi: ArrayLike) -> np.ndarray:
     """The paper's cable-workpiece test (III-C): the point P_i where segment ``p0 + t d``
     crosses the workpiece's top plane z = hi_z, projected on the floor (P'_i), lies inside the
     footprint (lo, hi) in x and y. Misses cables that pass through a side face only."""
@@ -290,8 +301,10 @@ def top_plane_hit(p0, d, lo, hi):
     return crosses & (px > lo[0]) & (px < hi[0]) & (py > lo[1]) & (py < hi[1])
 
 
-def classify_poses(desc, positions, rotations, chunk=DEFAULT_CHUNK, detail=False,
-                   backend='auto', without=()):
+def classify_poses(desc: RobotDescription, positions: ArrayLike, rotations: ArrayLike,
+                   chunk: int = DEFAULT_CHUNK, detail: bool = False, backend: str = 'auto',
+                   without: Iterable[str] | None = ()
+                   ) -> np.ndarray | tuple[np.ndarray, dict[str, np.ndarray]]:
     """Collision status of N poses as bit flags (uint8, (N,)), processed in chunks.
 
     Flags: ``OUTSIDE`` (platform not inside the frame; then no other flag is set),
@@ -405,7 +418,7 @@ def _classify_chunk(desc, pos, rot, detail, screen=None, without=frozenset()):
     return flags, part
 
 
-def count_flags(flags):
+def count_flags(flags: ArrayLike) -> dict[str, int]:
     """Counts per outcome of a flag array: total, accessible, outside_frame and per type."""
     flags = np.asarray(flags)
     counts = {'total_points': int(flags.size),
@@ -416,7 +429,9 @@ def count_flags(flags):
     return counts
 
 
-def check_pose(desc, position, rotation, without=()):
+def check_pose(desc: RobotDescription, position: ArrayLike, rotation: ArrayLike,
+               without: Iterable[str] | None = ()) -> PoseCheck:
+
     """Full report of one pose: lengths, pair distances, which pair or body collides.
 
     ``without`` switches constructs off as in :func:`classify_poses` (the pair distances and

@@ -12,6 +12,8 @@ and a pose outside the frame costs only the frame test.
 Only imported when numba is installed; the numpy path stays the fallback (and the reference
 the tests compare this kernel with, bit for bit on the flags).
 """
+from __future__ import annotations
+
 import math
 
 import numpy as np
@@ -76,9 +78,12 @@ def _segment_distance(rx, ry, rz, ux, uy, uz, vx, vy, vz):
 
 
 @njit(cache=True, nogil=True, error_model='numpy')
-def classify_shared(pos, rb, extent, frame_limit, frame_points, pair_i, pair_j, two_eps,
-                    screen_slack, platform_points, body_delta, rot, body_limit, min_length,
-                    flags):
+def classify_shared(pos: np.ndarray, rb: np.ndarray, extent: np.ndarray,
+                    frame_limit: np.ndarray, frame_points: np.ndarray, pair_i: np.ndarray,
+                    pair_j: np.ndarray, two_eps: float, screen_slack: float,
+                    platform_points: np.ndarray, body_delta: float, rot: np.ndarray,
+                    body_limit: np.ndarray, min_length: float, flags: np.ndarray) -> None:
+
     """Flags (OUTSIDE, CABLE_CABLE, CABLE_BODY bits) of every pose in ``pos`` (N, 3).
 
     ``rb`` (n, 3) = ``platform_points @ R.T``, ``extent`` (3,) the rotated platform's half

@@ -20,7 +20,10 @@ File format (YAML, metres)::
 Everything malformed raises :class:`paramotion.errors.UserError` with one line naming the
 file, the field and what is wrong; a description that loads is safe to compute with.
 """
+from __future__ import annotations
+
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
@@ -39,12 +42,12 @@ KNOWN_FIELDS = ('name', 'description', 'frame_half_size', 'frame_points', 'platf
 CONFIG_DIR = Path(__file__).resolve().parent / 'config'
 
 
-def default_description_path():
+def default_description_path() -> Path:
     """Path of the shipped default description: the Neuron fitted to Table II and the TOW box."""
     return CONFIG_DIR / 'kntu_neuron.yaml'
 
 
-def shipped_descriptions():
+def shipped_descriptions() -> list[Path]:
     """Paths of all robot descriptions shipped in ``cable_robot_pkg/cdrpm/config``."""
     return sorted(CONFIG_DIR.glob('kntu_*.yaml'))
 
@@ -71,19 +74,19 @@ class RobotDescription:
     source: str = ''
 
     @property
-    def n_cables(self):
+    def n_cables(self) -> int:
         """Number of cables n."""
         return self.frame_points.shape[0]
 
     @property
-    def platform_corners(self):
+    def platform_corners(self) -> np.ndarray:
         """(8, 3) corners of the platform box in frame B."""
         signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)],
                          dtype=float)
         return signs * self.platform_half_size
 
     @property
-    def workpiece_box(self):
+    def workpiece_box(self) -> tuple[np.ndarray, np.ndarray] | None:
         """(lower, upper) corners of the workpiece box in frame A, or None."""
         if self.workpiece is None:
             return None
@@ -91,18 +94,18 @@ class RobotDescription:
         floor = -self.frame_half_size[2]
         return (np.array([-wx / 2, -wy / 2, floor]), np.array([wx / 2, wy / 2, floor + wz]))
 
-    def checks_per_pose(self):
+    def checks_per_pose(self) -> int:
         """Collision checks per pose of the paper's eq. (9): n(n-1)/2 + 2n."""
         n = self.n_cables
         return n * (n - 1) // 2 + 2 * n
 
-    def with_workpiece(self, workpiece):
+    def with_workpiece(self, workpiece: Sequence[float] | None) -> RobotDescription:
         """A copy with another workpiece (``[Wx, Wy, Wz]`` or None), validated."""
         data = self.to_dict()
         data['workpiece'] = None if workpiece is None else [float(v) for v in workpiece]
         return description_from_dict(data, self.source or '<description>')
 
-    def to_dict(self):
+    def to_dict(self) -> dict[str, object]:
         """Plain-Python form (for JSON results and round trips)."""
         return {
             'name': self.name,
@@ -116,7 +119,7 @@ class RobotDescription:
         }
 
 
-def load_description(path=None):
+def load_description(path: str | Path | None = None) -> RobotDescription:
     """Load and validate a robot description YAML file (default: the shipped Neuron)."""
     path = Path(path) if path is not None else default_description_path()
     try:
@@ -187,7 +190,8 @@ def _scalar(data, key, src):
     return value
 
 
-def description_from_dict(data, source='<description>'):
+def description_from_dict(data: object, source: str = '<description>') -> RobotDescription:
+
     """Validate a parsed description (mapping) and build a :class:`RobotDescription`."""
     src = source
     if not isinstance(data, dict):

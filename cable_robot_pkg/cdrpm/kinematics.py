@@ -19,9 +19,16 @@ Orientation convention: ``rotation_matrix(rx, ry, rz) = Rx(rx) @ Ry(ry) @ Rz(rz)
 rotations about the x, then the new y, then the new z axis of the moving frame (the paper's
 section IV-C rotates "about the corresponding axes of the moving coordinate").
 """
+from __future__ import annotations
+
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
+
+if TYPE_CHECKING:
+    from cable_robot_pkg.cdrpm.description import RobotDescription
 
 #: Shortest cable (m) treated as a defined direction; shorter means B_i sits on A_i.
 MIN_CABLE_LENGTH = 1e-9
@@ -29,7 +36,7 @@ MIN_CABLE_LENGTH = 1e-9
 FRAME_TOL = 1e-9
 
 
-def rotation_matrix(rx, ry, rz):
+def rotation_matrix(rx: ArrayLike, ry: ArrayLike, rz: ArrayLike) -> np.ndarray:
     """Rotation matrices ``Rx(rx) Ry(ry) Rz(rz)`` for angles in radians: (..., 3, 3)."""
     rx, ry, rz = np.broadcast_arrays(np.asarray(rx, float), np.asarray(ry, float),
                                      np.asarray(rz, float))
@@ -50,12 +57,12 @@ def rotation_matrix(rx, ry, rz):
     return out
 
 
-def rotation_matrix_deg(rx, ry, rz):
+def rotation_matrix_deg(rx: ArrayLike, ry: ArrayLike, rz: ArrayLike) -> np.ndarray:
     """:func:`rotation_matrix` with angles in degrees."""
     return rotation_matrix(np.radians(rx), np.radians(ry), np.radians(rz))
 
 
-def quaternion_to_matrix(q):
+def quaternion_to_matrix(q: ArrayLike) -> np.ndarray:
     """Rotation matrices from quaternions ``(..., 4)`` in ROS order (x, y, z, w), normalised.
 
     Raises ValueError for a zero or non-finite quaternion.
@@ -78,7 +85,8 @@ def quaternion_to_matrix(q):
     return out
 
 
-def matrix_to_angles_deg(rot):
+def matrix_to_angles_deg(rot: ArrayLike) -> tuple[np.ndarray | float, np.ndarray | float,
+                                                  np.ndarray | float]:
     """Inverse of :func:`rotation_matrix_deg` (for rot[0, 2] away from +-1): (rx, ry, rz)."""
     rot = np.asarray(rot, dtype=float)
     ry = np.arcsin(np.clip(rot[..., 0, 2], -1.0, 1.0))
@@ -87,7 +95,8 @@ def matrix_to_angles_deg(rot):
     return np.degrees(rx), np.degrees(ry), np.degrees(rz)
 
 
-def as_pose_arrays(positions, rotations):
+def as_pose_arrays(positions: ArrayLike,
+                   rotations: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Normalise pose inputs: positions (N, 3) and rotations (3, 3) or (N, 3, 3)."""
     positions = np.atleast_2d(np.asarray(positions, dtype=float))
     rotations = np.asarray(rotations, dtype=float)
@@ -98,7 +107,8 @@ def as_pose_arrays(positions, rotations):
     return positions, rotations
 
 
-def platform_points_world(desc, positions, rotations):
+def platform_points_world(desc: RobotDescription, positions: ArrayLike,
+                          rotations: ArrayLike) -> np.ndarray:
     """World coordinates ``g + R b_i`` of the moving attachment points, (N, n, 3)."""
     positions, rotations = as_pose_arrays(positions, rotations)
     if rotations.ndim == 2:
@@ -107,12 +117,13 @@ def platform_points_world(desc, positions, rotations):
     return positions[:, None, :] + np.einsum('mij,nj->mni', rotations, desc.platform_points)
 
 
-def platform_extent(desc, rotations):
+def platform_extent(desc: RobotDescription, rotations: ArrayLike) -> np.ndarray:
     """Half extents of the axis-aligned box bounding the rotated platform, (3,) or (N, 3)."""
     return np.abs(np.asarray(rotations)) @ desc.platform_half_size
 
 
-def inside_frame(desc, positions, rotations):
+def inside_frame(desc: RobotDescription, positions: ArrayLike,
+                 rotations: ArrayLike) -> np.ndarray:
     """True where the whole platform box lies inside the fixed frame, (N,)."""
     positions, rotations = as_pose_arrays(positions, rotations)
     extent = platform_extent(desc, rotations)
@@ -130,12 +141,14 @@ class IKResult:
     degenerate: np.ndarray     # (N,) some cable of zero length (direction undefined)
 
     @property
-    def reachable(self):
+    def reachable(self) -> np.ndarray:
         """(N,) poses that are inside the frame and have well-defined cables."""
         return self.inside_frame & ~self.degenerate
 
 
-def inverse_kinematics(desc, positions, rotations):
+def inverse_kinematics(desc: RobotDescription, positions: ArrayLike,
+                       rotations: ArrayLike) -> IKResult:
+
     """Cable lengths and unit vectors for N poses, eqs. (1)-(3)."""
     positions, rotations = as_pose_arrays(positions, rotations)
     b_world = platform_points_world(desc, positions, rotations)

@@ -17,9 +17,14 @@ published number is held out and measured here:
 :func:`published_table` puts them in one table; :func:`anchor_sensitivity` perturbs the
 unknown anchor coordinates by a few centimetres and reports the spread of every figure.
 """
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from cable_robot_pkg.cdrpm.collisions import FLAG_OF_TYPE, OUTSIDE, classify_poses
 from cable_robot_pkg.cdrpm.description import RobotDescription, description_from_dict
@@ -33,6 +38,10 @@ from cable_robot_pkg.cdrpm.workspace import (
     total_orientation_workspace,
     workpiece_study,
 )
+
+if TYPE_CHECKING:
+    from cable_robot_pkg.cdrpm.arrangements import MapCases
+
 
 #: The paper's workpiece figures (IV-D): share of the plane kept, closest approach (m).
 PAPER_WORKPIECE_SHARE = 60.0
@@ -52,7 +61,7 @@ FIG7_RZ_DEG = (0.0, 10.0, 20.0, 30.0)
 TOLERANCE_POINTS = 5.0
 
 
-def table2_measures(desc: RobotDescription, step: float = 0.05) -> list:
+def table2_measures(desc: RobotDescription, step: float = 0.05) -> list[dict[str, object]]:
     """Table II rows: paper, ours by eq. (10), ours in-frame, and the points lost per type."""
     rows = []
     for rot, paper, _ in TABLE2_ROWS:
@@ -104,7 +113,8 @@ class Fig7Row:
     decided_by: str
 
 
-def fig7_rotations(rx, ry, rz, axes: str = 'moving') -> np.ndarray:
+def fig7_rotations(rx: ArrayLike, ry: ArrayLike, rz: ArrayLike,
+                   axes: str = 'moving') -> np.ndarray:
     """Rotation matrices for Fig. 7 angles (degrees, broadcast), (..., 3, 3).
 
     ``'moving'``: R = Rx(r_x) Ry(r_y) Rz(r_z), about the moving x, y', z'' axes (the convention
@@ -121,9 +131,10 @@ def fig7_rotations(rx, ry, rz, axes: str = 'moving') -> np.ndarray:
             @ rotation_matrix_deg(zero + rx, zero, zero))
 
 
-def fig7_trend(desc: RobotDescription, position=(0.0, 0.0, 0.0), rx_deg=FIG7_RX_DEG,
-               rz_deg=FIG7_RZ_DEG, step_deg: float = 1.0, max_deg: float = 90.0,
-               without=(), axes: str = 'moving') -> list:
+def fig7_trend(desc: RobotDescription, position: ArrayLike = (0.0, 0.0, 0.0),
+               rx_deg: Iterable[float] = FIG7_RX_DEG, rz_deg: Iterable[float] = FIG7_RZ_DEG,
+               step_deg: float = 1.0, max_deg: float = 90.0,
+               without: Iterable[str] | None = (), axes: str = 'moving') -> list[Fig7Row]:
     """Orientation workspace of IV-B read as Fig. 7's curves: the r_y limit per (r_z, r_x).
 
     r_y is scanned outwards from 0 in ``step_deg`` steps on both sides; the limit is the last
@@ -154,7 +165,8 @@ def fig7_trend(desc: RobotDescription, position=(0.0, 0.0, 0.0), rx_deg=FIG7_RX_
     return out
 
 
-def fig7_verdict(rows: list, rx_low: float = 0.0, rx_high: float = 45.0) -> dict:
+def fig7_verdict(rows: list[Fig7Row], rx_low: float = 0.0,
+                 rx_high: float = 45.0) -> dict[str, object]:
     """The paper's Fig. 7 statements tested on :func:`fig7_trend` rows at r_z = 0.
 
     ``shrinks``: the r_y limit at ``rx_high`` is below the one at ``rx_low``;
@@ -174,7 +186,8 @@ def fig7_verdict(rows: list, rx_low: float = 0.0, rx_high: float = 45.0) -> dict
             'cable_first_with_rz': with_rz.decided_by.startswith('cable_cable')}
 
 
-def workpiece_measures(desc: RobotDescription, size=WORKPIECE_M, step: float = 0.02) -> dict:
+def workpiece_measures(desc: RobotDescription, size: Sequence[float] = WORKPIECE_M,
+                       step: float = 0.02) -> dict[str, object]:
     """IV-D on the plane y = 0: share kept with the workpiece, closest approach above it,
     and the share of the plane's points lost to each collision type."""
     res = workpiece_study(desc, size, step=step)
@@ -357,8 +370,9 @@ WORKPIECE_SIZES_M = tuple((w, w, h) for w in (0.4, 0.6, 0.8, 1.0, 1.2, 1.4, 1.6,
                           for h in (0.05, 0.1, 0.2, 0.35, 0.5, 0.65))
 
 
-def workpiece_size_scan(desc: RobotDescription, sizes=WORKPIECE_SIZES_M,
-                        step: float = 0.05) -> list:
+def workpiece_size_scan(desc: RobotDescription,
+                        sizes: Iterable[Sequence[float]] = WORKPIECE_SIZES_M,
+                        step: float = 0.05) -> list[dict[str, object]]:
     """Workpiece share of the plane y = 0 and closest approach for each size (m)."""
     out = []
     for size in sizes:
@@ -368,8 +382,9 @@ def workpiece_size_scan(desc: RobotDescription, sizes=WORKPIECE_SIZES_M,
     return out
 
 
-def radius_sensitivity(desc: RobotDescription, radii_m=(0.001, 0.0025, 0.005, 0.01),
-                       step: float = 0.05, fig7_step: float = 1.0) -> list:
+def radius_sensitivity(desc: RobotDescription,
+                       radii_m: Iterable[float] = (0.001, 0.0025, 0.005, 0.01),
+                       step: float = 0.05, fig7_step: float = 1.0) -> list[dict[str, object]]:
     """Table II in frame and the Fig. 7 verdict for other cable radii (the paper gives none)."""
     from cable_robot_pkg.cdrpm.arrangements import table2_in_frame
     from cable_robot_pkg.cdrpm.workspace import grid_axes, grid_points
@@ -415,7 +430,7 @@ def _fitted_case(case):
 def heldout_search(desc: RobotDescription, pitch: float = 0.1, min_home_gap: float = 0.02,
                    screen_step: float = 0.2, screen_tolerance: float = 8.0,
                    plane_step: float = 0.05, fig7_step: float = 2.0, sample: int = 1000,
-                   seed: int = 0, map_cases=None) -> dict:
+                   seed: int = 0, map_cases: MapCases | None = None) -> dict[str, object]:
     """Which edge-anchored candidates reproduce the held-out figures together with the fitted?
 
     Candidates: those of the fit (:func:`cable_robot_pkg.cdrpm.arrangements._home_candidates`,
@@ -471,7 +486,8 @@ def _workpiece_ok(share, gap):
             and abs(gap - PAPER_WORKPIECE_GAP_M) <= 0.1)
 
 
-def summarise_heldout(rows: list) -> dict:
+def summarise_heldout(rows: list[dict[str, object]]) -> dict[str, object]:
+
     """Counts of :func:`heldout_search` rows meeting each published figure and their overlap."""
     fig7 = [r for r in rows if _paper_trend(r)]
     shrink = [r for r in rows if r['fig7']['shrinks']]

@@ -9,6 +9,8 @@ candidate arrangements (``paramotion workspace heldout``, about 10-20 minutes) i
 committed result, ``<out_dir>/workspace_heldout/result.json``, is summarised with the command
 and date that produced it.
 """
+from __future__ import annotations
+
 import json
 import os
 import platform
@@ -19,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from cable_robot_pkg.cdrpm import paper_figures as pf
-from cable_robot_pkg.cdrpm.description import load_description
+from cable_robot_pkg.cdrpm.description import RobotDescription, load_description
 from cable_robot_pkg.cdrpm.workspace import constant_orientation_workspace, workpiece_study
 
 #: What the paper says happens without each construct, and what is measured for it.
@@ -47,7 +49,8 @@ def _table(header, rows):
     return lines
 
 
-def ablation_rows(desc, step: float, plane_step: float, fig7_step: float) -> list:
+def ablation_rows(desc: RobotDescription, step: float, plane_step: float,
+                  fig7_step: float) -> list[dict[str, object]]:
     """Measured figures with each construct of :data:`ABLATIONS` switched off (and none)."""
     out = []
     for name, predicted in (('none', 'the fitted figures'),) + ABLATIONS:
@@ -68,7 +71,8 @@ def ablation_rows(desc, step: float, plane_step: float, fig7_step: float) -> lis
     return out
 
 
-def fig7_figure(desc, trends: dict, path: Path) -> Path:
+def fig7_figure(desc: RobotDescription, trends: dict[str, list[pf.Fig7Row]],
+                path: Path) -> Path:
     """Fig. 7 as curves, one panel per rotation convention (``trends``: label -> rows): the
     r_y limit against r_x per r_z, markers by the collision type that sets it."""
     import matplotlib
@@ -151,7 +155,8 @@ def _heldout_lines(out_dir: Path) -> list:
     return lines
 
 
-def write_report(out_dir: Path, quick: bool = False) -> list:
+def write_report(out_dir: Path, quick: bool = False) -> list[Path]:
+
     """Rerun the headline measurements; write ``out_dir/workspace.md`` and its PNG.
 
     ``quick`` uses coarse grids (0.1 m, 2 deg) and three perturbed samples (under two

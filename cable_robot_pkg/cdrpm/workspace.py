@@ -17,10 +17,15 @@ sticks out of the frame and that point is counted as ``outside_frame``, not as a
 Eq. (10) counts all grid points; :attr:`COWResult.collision_free_percentage` is the share of
 in-frame points without collision (the paper's program checks collisions only).
 """
+from __future__ import annotations
+
 import time
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from cable_robot_pkg.cdrpm.collisions import (
     CABLE_BODY,
@@ -34,6 +39,9 @@ from cable_robot_pkg.cdrpm.collisions import (
     count_flags,
 )
 from cable_robot_pkg.cdrpm.kinematics import rotation_matrix_deg
+
+if TYPE_CHECKING:
+    from cable_robot_pkg.cdrpm.description import RobotDescription
 
 #: Table II of the paper: (theta_x, theta_y, theta_z) in degrees, KNTU CDRPM %, WARP %.
 TABLE2_ROWS = (
@@ -60,7 +68,7 @@ def _progress(iterable, enabled, total=None, desc=None):
     return tqdm(iterable, total=total, desc=desc, unit='step', leave=False)
 
 
-def grid_axes(desc, step):
+def grid_axes(desc: RobotDescription, step: float) -> list[np.ndarray]:
     """Cell-centre grid axes over the centroid region (frame shrunk by the platform)."""
     if not step > 0:
         raise ValueError(f'grid step must be > 0, got {step}')
@@ -72,18 +80,18 @@ def grid_axes(desc, step):
     return axes
 
 
-def grid_points(axes):
+def grid_points(axes: Sequence[ArrayLike]) -> np.ndarray:
     """(N, 3) points of the grid given by three axes, x slowest, z fastest."""
     mesh = np.meshgrid(*axes, indexing='ij')
     return np.stack([m.ravel() for m in mesh], axis=1)
 
 
-def step_for_resolution(points_per_m3):
+def step_for_resolution(points_per_m3: float) -> float:
     """Grid step (m) giving a resolution in points per cubic metre (paper: 37,000)."""
     return float(points_per_m3) ** (-1.0 / 3.0)
 
 
-def accessible_percentage(flags):
+def accessible_percentage(flags: ArrayLike) -> float:
     """Eq. (10): accessible points / all points * 100."""
     flags = np.asarray(flags)
     return 100.0 * np.count_nonzero(flags == 0) / max(flags.size, 1)
@@ -93,24 +101,24 @@ def accessible_percentage(flags):
 class COWResult:
     """Constant-orientation workspace on a grid."""
 
-    rotation_deg: tuple
-    axes: list
+    rotation_deg: tuple[float, float, float]
+    axes: list[np.ndarray]
     flags: np.ndarray                 # (nx, ny, nz) uint8 collision flags (0 = accessible)
     wall_time_s: float
-    counts: dict = field(default_factory=dict)
+    counts: dict[str, int] = field(default_factory=dict)
 
     @property
-    def accessible_percentage(self):
+    def accessible_percentage(self) -> float:
         """Eq. (10) over all grid points."""
         return accessible_percentage(self.flags)
 
     @property
-    def collision_free_percentage(self):
+    def collision_free_percentage(self) -> float:
         """Share (%) of the in-frame grid points without any collision."""
         inside = np.count_nonzero((self.flags & OUTSIDE) == 0)
         return 100.0 * np.count_nonzero(self.flags == 0) / max(inside, 1)
 
-    def to_dict(self, desc=None):
+    def to_dict(self, desc: RobotDescription | None = None) -> dict[str, object]:
         """JSON-ready summary (no per-point data)."""
         step = float(self.axes[0][1] - self.axes[0][0]) if self.axes[0].size > 1 else None
         out = {
@@ -135,8 +143,11 @@ class COWResult:
         return out
 
 
-def constant_orientation_workspace(desc, rotation_deg, step=0.05, axes=None, progress=False,
-                                   chunk=DEFAULT_CHUNK, without=()):
+def constant_orientation_workspace(desc: RobotDescription, rotation_deg: Sequence[float],
+                                   step: float = 0.05,
+                                   axes: Sequence[ArrayLike] | None = None,
+                                   progress: bool = False, chunk: int = DEFAULT_CHUNK,
+                                   without: Iterable[str] | None = ()) -> COWResult:
     """COW (section IV-A) at orientation ``rotation_deg`` = (r_x, r_y, r_z) in degrees;
     ``without`` switches constructs off (:func:`classify_poses`)."""
     axes = grid_axes(desc, step) if axes is None else [np.asarray(a, float) for a in axes]
@@ -161,7 +172,9 @@ def constant_orientation_workspace(desc, rotation_deg, step=0.05, axes=None, pro
                      flags=flags.reshape(shape), wall_time_s=wall, counts=count_flags(flags))
 
 
-def benchmark_cow(desc=None, rotation_deg=(30, 30, 10), step=0.05, repeats=7, progress=False):
+def benchmark_cow(desc: RobotDescription | None = None,
+                  rotation_deg: Sequence[float] = (30, 30, 10), step: float = 0.05,
+                  repeats: int = 7, progress: bool = False) -> dict[str, object]:
     """Poses per second of the ``workspace cow`` path (:func:`constant_orientation_workspace`).
 
     Median over ``repeats`` runs of the classification wall time (all checks per pose, eq. (9))
@@ -188,7 +201,8 @@ def benchmark_cow(desc=None, rotation_deg=(30, 30, 10), step=0.05, repeats=7, pr
             'kntu_rotation_deg': list(rotation_deg), 'kntu_step_m': step}
 
 
-def table2(desc, step=0.05, progress=False, without=()):
+def table2(desc: RobotDescription, step: float = 0.05, progress: bool = False,
+           without: Iterable[str] | None = ()) -> list[dict[str, object]]:
     """The paper's Table II rows for ``desc``: list of dicts with ours beside the paper's."""
     rows = []
     for rot, paper, warp in _progress(TABLE2_ROWS, progress, desc='Table II'):
@@ -218,7 +232,7 @@ class OrientationResult:
     rz_deg: np.ndarray
     flags: np.ndarray       # (n_rz, n_rx, n_ry) collision flags
 
-    def boundary(self):
+    def boundary(self) -> list[dict[str, object]]:
         """Per r_z and r_x: the r_y interval around 0 that is accessible, and what limits it.
 
         Returns a list (one per r_z) of dicts with ``rx``, ``ry_min``, ``ry_max`` (None where
@@ -274,8 +288,11 @@ def _first_cause_counts(flags):
     return out
 
 
-def orientation_workspace(desc, position, rz_deg=(0, 10, 20, 30), rx_range=(-90, 90),
-                          ry_range=(-90, 90), step_deg=1.0, without=()):
+def orientation_workspace(desc: RobotDescription, position: ArrayLike,
+                          rz_deg: ArrayLike = (0, 10, 20, 30),
+                          rx_range: tuple[float, float] = (-90, 90),
+                          ry_range: tuple[float, float] = (-90, 90), step_deg: float = 1.0,
+                          without: Iterable[str] | None = ()) -> OrientationResult:
     """Orientation workspace at ``position`` (IV-B): flags over an (r_x, r_y) grid per r_z."""
     rx = np.arange(rx_range[0], rx_range[1] + step_deg / 2, step_deg)
     ry = np.arange(ry_range[0], ry_range[1] + step_deg / 2, step_deg)
@@ -294,20 +311,20 @@ def orientation_workspace(desc, position, rz_deg=(0, 10, 20, 30), rx_range=(-90,
 class TOWResult:
     """Total orientation workspace: grid points accessible at every sampled orientation."""
 
-    theta_max_deg: tuple
+    theta_max_deg: tuple[float, ...]
     orientations_deg: np.ndarray     # (K, 3) sampled orientations
-    axes: list
+    axes: list[np.ndarray]
     accessible: np.ndarray           # (nx, ny, nz) bool
-    removed_by: dict                 # points removed per collision type (first cause)
+    removed_by: dict[str, int]       # points removed per collision type (first cause)
     wall_time_s: float
 
     @property
-    def accessible_percentage(self):
+    def accessible_percentage(self) -> float:
         """Eq. (10) of the TOW over the grid."""
         return 100.0 * np.count_nonzero(self.accessible) / self.accessible.size
 
 
-def orientation_samples(theta_max_deg, angle_step_deg):
+def orientation_samples(theta_max_deg: Sequence[float], angle_step_deg: float) -> np.ndarray:
     """Orientations of the +-theta_m box, corners first (they prune most), (K, 3) degrees."""
     per_axis = []
     for t in theta_max_deg:
@@ -320,8 +337,11 @@ def orientation_samples(theta_max_deg, angle_step_deg):
     return mesh[np.argsort(-extremity, kind='stable')]
 
 
-def total_orientation_workspace(desc, theta_max_deg=(30, 30, 10), step=0.05,
-                                angle_step_deg=10.0, progress=False, without=()):
+def total_orientation_workspace(desc: RobotDescription,
+                                theta_max_deg: Sequence[float] = (30, 30, 10),
+                                step: float = 0.05, angle_step_deg: float = 10.0,
+                                progress: bool = False,
+                                without: Iterable[str] | None = ()) -> TOWResult:
     """TOW (IV-C): intersection of the COWs over a sampled +-theta_m orientation box.
 
     As in the paper, points found inaccessible are removed and not tested again, so the cost
@@ -370,7 +390,7 @@ def _largest_rectangle(mask2d):
     return best
 
 
-def largest_box(mask, axes):
+def largest_box(mask: np.ndarray, axes: Sequence[np.ndarray]) -> dict[str, object] | None:
     """Largest-volume axis-aligned box of grid cells all True in ``mask`` (nx, ny, nz).
 
     Exhaustive over x ranges with a largest-rectangle search in (y, z) for each, so exact on
@@ -405,7 +425,7 @@ def largest_box(mask, axes):
             'volume_m3': round(float(np.prod(size)), 9), 'cells': int(best[0])}
 
 
-def contains_box(mask, axes, size_m):
+def contains_box(mask: ArrayLike, axes: Sequence[np.ndarray], size_m: Sequence[float]) -> bool:
     """True when an axis-aligned box of ``size_m`` (x, y, z in m) fits inside the cells of
     ``mask`` (nx, ny, nz) that are all True, anywhere on the grid ``axes``.
 
@@ -428,8 +448,11 @@ def contains_box(mask, axes, size_m):
 
 # --- workpiece study (IV-D) --------------------------------------------------------------------
 
-def workpiece_study(desc, workpiece, rotation_deg=(0, 0, 0), step=0.02, plane_y=0.0,
-                    without=()):
+def workpiece_study(desc: RobotDescription, workpiece: Sequence[float],
+                    rotation_deg: Sequence[float] = (0, 0, 0), step: float = 0.02,
+                    plane_y: float = 0.0, without: Iterable[str] | None = ()
+                    ) -> dict[str, object]:
+
     """COW on the vertical plane y = ``plane_y`` with and without a workpiece box (IV-D).
 
     Returns a dict with both flag maps (nx, nz), the accessible percentages, their ratio (the

@@ -15,16 +15,25 @@ iff the largest angular gap between them exceeds pi. That test is exact, cheap a
 (batched SVD); :func:`wrench_closed_lp` solves the same question with a linear program for
 cross-checking and for other cable counts.
 """
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.optimize import linprog
 
 from cable_robot_pkg.cdrpm.kinematics import as_pose_arrays
+
+if TYPE_CHECKING:
+    from cable_robot_pkg.cdrpm.description import RobotDescription
 
 #: Relative singular-value threshold below which W is rank deficient.
 RANK_TOL = 1e-9
 
 
-def structure_matrix(desc, positions, rotations):
+def structure_matrix(desc: RobotDescription, positions: ArrayLike,
+                     rotations: ArrayLike) -> np.ndarray:
     """Structure (wrench) matrices W, (N, 6, n), for N poses."""
     positions, rotations = as_pose_arrays(positions, rotations)
     if rotations.ndim == 2:
@@ -39,7 +48,8 @@ def structure_matrix(desc, positions, rotations):
     return np.concatenate([u, moment], axis=-1).transpose(0, 2, 1)
 
 
-def wrench_closure(desc, positions, rotations, chunk=4096):
+def wrench_closure(desc: RobotDescription, positions: ArrayLike, rotations: ArrayLike,
+                   chunk: int = 4096) -> tuple[np.ndarray, np.ndarray]:
     """Wrench-closure test of N poses.
 
     Returns ``(closed, margin)``: boolean (N,) and, for n = 8, the angular margin (rad) by
@@ -80,7 +90,8 @@ def _closure_two_dim_null(mats):
     return margin > 1e-9, margin
 
 
-def wrench_closed_lp(mat, tol=1e-9):
+def wrench_closed_lp(mat: ArrayLike, tol: float = 1e-9) -> tuple[bool, float]:
+
     """LP test: maximise s subject to W t = 0, t_i >= s, sum t = 1; closed iff rank 6, s > 0.
 
     Returns ``(closed, s)``.
