@@ -4,6 +4,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 REPO = Path(__file__).resolve().parents[1]
 
 ALGORITHMS = [
@@ -136,3 +138,58 @@ def test_every_console_script_resolves():
     assert len(entries) >= 15
     for name, module in entries:
         assert callable(getattr(importlib.import_module(module), 'main', None)), name
+
+
+# Issue 33: packages whose algorithm modules carry type hints on every public function, method
+# and class; the others join the list as their owners finish.
+TYPED_PACKAGES = ['climber_pkg', 'cable_robot_pkg/cdrpm']
+
+
+def _typed_algorithm_sources(package):
+    """Algorithm modules of ``package``: not a node, not the command line or the scenario
+    runner, no rclpy import."""
+    for path in sorted((REPO / package).rglob('*.py')):
+        folders = path.relative_to(REPO / package).parts[:-1]
+        if (path.name.endswith('_node.py') or 'cli' in folders
+                or path.name in ('cli.py', 'scenario.py', '__init__.py') or _imports_rclpy(path)):
+            continue
+        yield path
+
+
+def _untyped_public_functions(path):
+    """``file:line name (what is missing)`` for each public function or method (of a public
+    class) with an unannotated argument (self/cls aside) or no return annotation
+    (``__init__`` aside)."""
+    out = []
+
+    def visit(body, prefix):
+        for node in body:
+            if isinstance(node, ast.ClassDef) and not node.name.startswith('_'):
+                visit(node.body, f'{prefix}{node.name}.')
+            elif isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                if node.name.startswith('_') and node.name != '__init__':
+                    continue
+                a = node.args
+                args = a.posonlyargs + a.args + a.kwonlyargs + [
+                    x for x in (a.vararg, a.kwarg) if x is not None]
+                missing = [x.arg for x in args
+                           if x.annotation is None and x.arg not in ('self', 'cls')]
+                if node.returns is None and node.name != '__init__':
+                    missing.append('return')
+                if missing:
+                    out.append(f'{path.relative_to(REPO)}:{node.lineno} {prefix}{node.name} '
+                               f'({", ".join(missing)})')
+
+    visit(ast.parse(path.read_text(), str(path)).body, '')
+    return out
+
+
+@pytest.mark.parametrize('package', TYPED_PACKAGES)
+def test_public_functions_of_algorithm_modules_are_typed(package):
+    """Issue 33: every public function and method of an algorithm module has annotated
+    arguments and a return annotation (found by walking the source, so new modules count)."""
+    paths = list(_typed_algorithm_sources(package))
+    assert len(paths) >= 3, f'{package}: algorithm modules not found'
+    offenders = [entry for path in paths for entry in _untyped_public_functions(path)]
+    assert offenders == [], (f'{len(offenders)} untyped public functions in {package}:\n'
+                             + '\n'.join(offenders))
