@@ -1,4 +1,4 @@
-"""``paramotion coverage sweep --worlds DIR [--out DIR]``: the coverage graph over many worlds.
+"""``paramotion coverage sweep --worlds DIR [--planner paper|grid]``: coverage over many worlds.
 
 Every world JSON in ``DIR`` is one independent case: a whole lock-step coverage run
 (:func:`coverage_pkg.scenario.run_coverage`, no bag) in its own private ROS domain, run as a
@@ -19,10 +19,11 @@ from paramotion.sweep import add_dask_args, run_args, run_tasks
 def coverage_case(case):
     """One world of the sweep: the result dict of :func:`run_coverage` (JSON-ready).
     Module-level so that Dask can ship it to a worker process."""
-    from coverage_pkg.scenario import run_coverage
+    from coverage_pkg.scenario import DEFAULT_PLANNER, run_coverage
     result = run_coverage(case['world'], case['delta'], case['radius'], case['detector'],
                           bag_dir=None, max_sim_time=case['max_sim_time'],
-                          sonar_max_range=case['sonar_max_range'], seed=case['seed'])
+                          sonar_max_range=case['sonar_max_range'], seed=case['seed'],
+                          planner=case.get('planner', DEFAULT_PLANNER))
     result.pop('_layers', None)
     result.pop('_uncovered', None)
     return result
@@ -48,10 +49,11 @@ def _sweep(args):
         raise UserError(f'--worlds {args.worlds}: no .json world files there')
     for path in paths:  # every world checked before any run starts
         validate_inputs(str(path), args.delta, args.radius, args.detector,
-                        args.sonar_max_range, args.max_sim_time)
+                        args.sonar_max_range, args.max_sim_time, args.planner)
     cases = [{'world': str(p), 'delta': args.delta, 'radius': args.radius,
               'detector': args.detector, 'max_sim_time': args.max_sim_time,
-              'sonar_max_range': args.sonar_max_range, 'seed': args.seed} for p in paths]
+              'sonar_max_range': args.sonar_max_range, 'seed': args.seed,
+              'planner': args.planner} for p in paths]
     with output_dir(args.out, args.overwrite) as tmp:
         results = run_tasks(coverage_case, cases, desc='coverage sweep', **run_args(args))
         rows = []
@@ -62,7 +64,8 @@ def _sweep(args):
                   if r['path_over_lower_bound'] is not None]
         mean = sum(ratios) / len(ratios) if ratios else None
         write_json(tmp / 'summary.json', {
-            'worlds': str(folder), 'detector': args.detector, 'delta_m': args.delta,
+            'worlds': str(folder), 'planner': args.planner, 'detector': args.detector,
+            'delta_m': args.delta,
             'radius_m': args.radius, 'max_sim_time_s': args.max_sim_time, 'seed': args.seed,
             'rows': rows, 'mean_path_over_lower_bound': mean})
     print(f'{"world":24s} {"outcome":>10s} {"covered %":>9s} {"path m":>8s} {"bound m":>8s} '
@@ -99,6 +102,10 @@ def register_sweep(parser):
     sweep.add_argument('--worlds', required=True, help='directory of world JSON files')
     sweep.add_argument('--delta', type=float, default=2.0, help='detector range (m)')
     sweep.add_argument('--radius', type=float, default=0.25, help='robot radius (m)')
+    from coverage_pkg.scenario import DEFAULT_PLANNER, PLANNERS
+    sweep.add_argument('--planner', choices=PLANNERS, default=DEFAULT_PLANNER,
+                       help='paper: Algorithm 1 (coverage_pkg/algorithm1.py); grid: ours, '
+                            'the default')
     sweep.add_argument('--detector', choices=('extended', 'robot'), default='extended',
                        help='extended-range detector or the robot-size baseline')
     sweep.add_argument('--sonar-max-range', type=float, default=5.0, help='sonar max range (m)')
