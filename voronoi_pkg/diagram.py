@@ -28,19 +28,27 @@ Construction used by the planner (:mod:`voronoi_pkg.planner`):
 No roadmap edge comes from a free grid edge: the planner searches these pieces and links only.
 :func:`tie_segments` draws the same pieces of one slice for figures and markers.
 """
+from __future__ import annotations
+
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 
 from voronoi_pkg.ties import on_diagram, tie_tolerance, two_smallest
+
+if TYPE_CHECKING:
+    from voronoi_pkg.planar import Domain, PlanarModel
 
 __all__ = ['DiagramSlice', 'SliceFields', 'affine_coefficients', 'contact_evaluator',
            'diagram_mask', 'diagram_slices', 'grid_axes', 'link_slices', 'shifted_pairs',
            'slice_fields', 'tie_segments']
 
 
-def grid_axes(domain, h: float) -> tuple:
+def grid_axes(domain: Domain, h: float) -> tuple[np.ndarray, np.ndarray]:
     """Grid coordinates covering the domain's x and y ranges with spacing about ``h``."""
     nx = max(2, int(round((domain.x[1] - domain.x[0]) / h)) + 1)
     ny = max(2, int(round((domain.y[1] - domain.y[0]) / h)) + 1)
@@ -71,7 +79,8 @@ def _configs(phis, xs, ys):
     return np.stack([X, Y, P], axis=-1)
 
 
-def slice_fields(model, phis, xs, ys, program: str = 'total') -> SliceFields:
+def slice_fields(model: PlanarModel, phis: ArrayLike, xs: np.ndarray, ys: np.ndarray,
+                 program: str = 'total') -> SliceFields:
     """Evaluate rho, the smallest contact and the singularity cell on the grid (vectorised).
 
     Each determinant is affine in (x, y) within a slice (:func:`affine_coefficients`), so
@@ -105,7 +114,9 @@ def slice_fields(model, phis, xs, ys, program: str = 'total') -> SliceFields:
     return SliceFields(phis, xs, ys, rho, contact, code, cell, model.free_tol)
 
 
-def contact_evaluator(model, phi: float, program: str = 'total') -> tuple:
+def contact_evaluator(model: PlanarModel, phi: float, program: str = 'total'
+                      ) -> tuple[Callable[[ArrayLike], tuple[np.ndarray, np.ndarray]],
+                                 tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """``f(xy (n, 2)) -> (values, codes)`` of the contacts in the slice ``phi``, from the
     affine forms, and the forms ``(A, B, C)`` (each ``(n_keys,)``)."""
     prog = model.programs[program]
@@ -146,7 +157,8 @@ def diagram_mask(rho: np.ndarray, contact: np.ndarray, code: np.ndarray,
     return mask
 
 
-def tie_segments(model, phi: float, xs, ys, program: str = 'total') -> np.ndarray:
+def tie_segments(model: PlanarModel, phi: float, xs: np.ndarray, ys: np.ndarray,
+                 program: str = 'total') -> np.ndarray:
     """Straight pieces of the diagram in one slice, ``(m, 2, 2)`` xy segments: the edges of
     :func:`diagram_slices` for that slice (the same pieces the planner searches)."""
     fields = slice_fields(model, np.array([phi]), xs, ys, program)
@@ -156,7 +168,8 @@ def tie_segments(model, phi: float, xs, ys, program: str = 'total') -> np.ndarra
     return sl.xyz[sl.edges][:, :, :2]
 
 
-def affine_coefficients(model, phis, program: str = 'total') -> tuple:
+def affine_coefficients(model: PlanarModel, phis: ArrayLike, program: str = 'total'
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Exact affine form of every determinant per orientation slice.
 
     For a fixed phi every moving point is P3 plus a constant, so each 3x3 determinant is affine
@@ -303,7 +316,8 @@ def _in_cells(p, xs, ys, jj, ii):
                 & (ys[jj] - h <= p[:, 1]) & (p[:, 1] <= ys[jj + 1] + h))
 
 
-def diagram_slices(model, fields, program: str = 'total') -> list:
+def diagram_slices(model: PlanarModel, fields: SliceFields,
+                   program: str = 'total') -> list[DiagramSlice]:
     """Exact diagram pieces of every slice in ``fields``, as :class:`DiagramSlice` graphs.
 
     Nodes: on every grid edge joining two free vertices of one singularity cell whose smallest

@@ -15,11 +15,14 @@ configuration, exactly one leaf value equals rho unless there is a tie: that lea
 where the active leaf changes. :meth:`RhoProgram.evaluate` returns rho and the active leaf for
 many configurations at once (numpy, vectorised over the last axis).
 """
+from __future__ import annotations
+
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-from voronoi_pkg.predicates import And, Delta, Not, Or, canonical, determinant_keys
+from voronoi_pkg.predicates import And, Delta, Not, Or, Predicate, canonical, determinant_keys
 
 __all__ = ['RhoProgram', 'compile_rho']
 
@@ -65,7 +68,7 @@ class RhoProgram:
         leaves: list of ``(key_index, sign)``; leaf ``i`` has value ``sign * dets[key_index]``.
     """
 
-    def __init__(self, tree):
+    def __init__(self, tree: Predicate) -> None:
         self.tree = tree
         self.keys = determinant_keys(tree)
         self._key_index = {k: i for i, k in enumerate(self.keys)}
@@ -101,7 +104,7 @@ class RhoProgram:
             return cache[leaf]
         return value
 
-    def rho(self, dets) -> np.ndarray:
+    def rho(self, dets: ArrayLike) -> np.ndarray:
         """rho only (no active leaf): ``dets`` is ``(len(keys), ...)``; returns ``(...)``."""
         value = self._leaf_values(_rows(dets), {})
 
@@ -117,7 +120,7 @@ class RhoProgram:
         out = ev(self.root)
         return np.array(out, dtype=float, copy=True) if not isinstance(self.root, _Node) else out
 
-    def evaluate(self, dets) -> tuple:
+    def evaluate(self, dets: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """rho and the active signed leaf: returns ``(rho, active)``, both shaped ``(...)``.
 
         Ties resolve to the first child in tree order, deterministically; values within a
@@ -149,7 +152,7 @@ class RhoProgram:
         diagram (:mod:`voronoi_pkg.ties`)."""
         return len(self.root.children) if _is_min(self.root) else 1
 
-    def contact_values(self, dets) -> tuple:
+    def contact_values(self, dets: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Value and deciding leaf of every contact (child of the root min node).
 
         Returns ``(values, codes)``, each ``(n_contacts, ...)``; a code is ``2 * key_index +
@@ -177,7 +180,7 @@ class RhoProgram:
         vals, codes = zip(*(ev(k) for k in kids))
         return np.stack(vals), np.stack(codes)
 
-    def sub_values(self, dets) -> np.ndarray:
+    def sub_values(self, dets: ArrayLike) -> np.ndarray:
         """Values of the root's children (e.g. the AND-ed factors), ``(n_children, ...)``."""
         value = self._leaf_values(_rows(dets), {})
         kids = self.root.children if isinstance(self.root, _Node) else (self.root,)
@@ -205,6 +208,6 @@ def _rows(dets):
     return np.asarray(dets, dtype=float)
 
 
-def compile_rho(tree) -> RhoProgram:
+def compile_rho(tree: Predicate) -> RhoProgram:
     """Compile a predicate tree into its distance measure (section 4)."""
     return RhoProgram(tree)

@@ -7,7 +7,11 @@ headless Agg backend).
   rho of P1 AND P2 at phi = -pi/2, 0 and pi/2, diagram slices at the orientations where the
   slice's topology changes, and a singularity- and collision-free path.
 """
+from __future__ import annotations
+
 import math
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import matplotlib
 
@@ -16,9 +20,14 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.collections import LineCollection  # noqa: E402
 from mpl_toolkits.mplot3d.art3d import Line3DCollection  # noqa: E402
+from numpy.typing import ArrayLike  # noqa: E402
 from scipy import ndimage  # noqa: E402
 
 from voronoi_pkg.diagram import diagram_mask, tie_segments  # noqa: E402
+
+if TYPE_CHECKING:
+    from voronoi_pkg.planar import PlanarModel
+    from voronoi_pkg.spatial321 import Spatial321Model
 
 __all__ = ['figure2', 'figure3', 'slice_summary', 'topology_signature']
 
@@ -50,7 +59,8 @@ def _draw_singularities(ax, model, X, Y, q):
                        linestyles='dashed')
 
 
-def figure2(model, path, phi=math.pi / 4, h=0.25):
+def figure2(model: PlanarModel, path: str | Path, phi: float = math.pi / 4,
+            h: float = 0.25) -> None:
     """Write Fig. 2 (a)-(f) to ``path``: rho and its simplified Voronoi diagram at ``phi``."""
     xs, ys = _grid(model, h)
     X, Y = np.meshgrid(xs, ys)
@@ -93,7 +103,8 @@ def figure2(model, path, phi=math.pi / 4, h=0.25):
     plt.close(fig)
 
 
-def slice_summary(model, phi, xs, ys):
+def slice_summary(model: PlanarModel, phi: float, xs: np.ndarray, ys: np.ndarray
+                  ) -> tuple[tuple[int, int], np.ndarray]:
     """Coarse invariant and vertices of one diagram slice.
 
     Returns ``((#connected pieces, #vertices), vertices (m, 2))``: vertices are clusters of
@@ -123,7 +134,8 @@ def slice_summary(model, phi, xs, ys):
     return (pieces, n), verts
 
 
-def topology_signature(model, phi, xs, ys):
+def topology_signature(model: PlanarModel, phi: float, xs: np.ndarray,
+                       ys: np.ndarray) -> tuple[int, int]:
     """(#connected pieces, #vertices) of a diagram slice (see :func:`slice_summary`)."""
     return slice_summary(model, phi, xs, ys)[0]
 
@@ -141,8 +153,9 @@ def _vertex_traces(sweep, vertices, max_jump):
     return np.asarray(segs, dtype=float).reshape(-1, 2, 3)
 
 
-def figure3(model, path_file, path=None, phi_range=(-math.pi / 2, math.pi / 2), h=1.0,
-            n_sweep=73, max_slices=8):
+def figure3(model: PlanarModel, path_file: str | Path, path: np.ndarray | None = None,
+            phi_range: tuple[float, float] = (-math.pi / 2, math.pi / 2), h: float = 1.0,
+            n_sweep: int = 73, max_slices: int = 8) -> list[float]:
     """Write Fig. 3 to ``path_file``: rho surfaces, diagram slices and the planned ``path``."""
     xs, ys = _grid(model, h)
     lo, hi = phi_range
@@ -205,7 +218,8 @@ def figure3(model, path_file, path=None, phi_range=(-math.pi / 2, math.pi / 2), 
     return [float(sweep[i]) for i in chosen]
 
 
-def figure321(model, path_file, path, start, goal):
+def figure321(model: Spatial321Model, path_file: str | Path, path: np.ndarray | None,
+              start: ArrayLike, goal: ArrayLike) -> None:
     """3-D view of the platform at start, along the path and at the goal, and the boxes."""
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 

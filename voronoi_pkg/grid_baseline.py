@@ -15,16 +15,23 @@ diagram planner's (lazy: failing edges are dropped and the search repeats).
 the platform segment P3P4 and the nearest fixed scene segment (base, boundary and obstacle
 edges). No ROS imports.
 """
+from __future__ import annotations
+
 import math
 import time
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
 from voronoi_pkg.diagram import grid_axes, shifted_pairs, slice_fields
 from voronoi_pkg.planner import check_path, unwrap_phi, validate_configuration
+
+if TYPE_CHECKING:
+    from voronoi_pkg.planar import PlanarModel
 
 __all__ = ['ClearanceGridPlanner', 'GridPlanResult', 'segment_clearance']
 
@@ -36,7 +43,7 @@ def _point_segment(p, a, b):
     return np.hypot(*np.moveaxis(p - a - t[..., None] * ab, -1, 0))
 
 
-def segment_clearance(model, path: np.ndarray) -> np.ndarray:
+def segment_clearance(model: PlanarModel, path: ArrayLike) -> np.ndarray:
     """Euclidean distance between the platform segment and the nearest fixed scene segment at
     every configuration of ``path`` (M, 3); 0 where they touch or cross."""
     path = np.atleast_2d(np.asarray(path, dtype=float))
@@ -79,9 +86,9 @@ class GridPlanResult:
 class ClearanceGridPlanner:
     """Dijkstra on the free grid with clearance-weighted edge costs (see the module docs)."""
 
-    def __init__(self, model, h: float = 1.0, dphi_deg: float = 2.5, weight: float = 1.0,
-                 check_step: float = 0.05, check_dphi: float = 0.01, phi_scale=None,
-                 max_iterations: int = 200):
+    def __init__(self, model: PlanarModel, h: float = 1.0, dphi_deg: float = 2.5,
+                 weight: float = 1.0, check_step: float = 0.05, check_dphi: float = 0.01,
+                 phi_scale: float | None = None, max_iterations: int = 200) -> None:
         self.model = model
         self.h = float(h)
         self.weight = float(weight)
@@ -143,7 +150,7 @@ class ClearanceGridPlanner:
                 return int(np.ravel_multi_index((k, j, i), f.rho.shape))
         return None
 
-    def plan(self, start, goal) -> GridPlanResult:
+    def plan(self, start: ArrayLike, goal: ArrayLike) -> GridPlanResult:
         """Shortest clearance-weighted path from ``start`` to ``goal`` on the free grid."""
         t0 = time.perf_counter()
         model = self.model

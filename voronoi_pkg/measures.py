@@ -12,14 +12,22 @@ alone (ours: for the tests and the report, independent of the planner's own labe
 
 No ROS imports.
 """
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 from voronoi_pkg.ties import tie_gap
+
+if TYPE_CHECKING:
+    from voronoi_pkg.planar import PlanarModel
 
 __all__ = ['on_diagram_share', 'path_length', 'tie_distance']
 
 
-def tie_distance(model, path: np.ndarray, eps: float = 1e-3) -> np.ndarray:
+def tie_distance(model: PlanarModel, path: ArrayLike, eps: float = 1e-3) -> np.ndarray:
     """Distance in (x, y) of each configuration of ``path`` (M, 3) from the diagram."""
     path = np.asarray(path, dtype=float)
     gap = tie_gap(*model.contact_values(path))
@@ -28,13 +36,14 @@ def tie_distance(model, path: np.ndarray, eps: float = 1e-3) -> np.ndarray:
     return gap / np.maximum(np.hypot(*grad), 1e-300)
 
 
-def path_length(path: np.ndarray, phi_scale: float = 10.0) -> float:
+def path_length(path: ArrayLike, phi_scale: float = 10.0) -> float:
     """Length of a polyline in (x, y, phi), phi weighted by ``phi_scale``."""
     d = np.diff(np.asarray(path, dtype=float), axis=0)
     return float(np.sum(np.sqrt(d[:, 0] ** 2 + d[:, 1] ** 2 + (phi_scale * d[:, 2]) ** 2)))
 
 
-def on_diagram_share(model, path: np.ndarray, delta: float, phi_scale: float = 10.0) -> tuple:
+def on_diagram_share(model: PlanarModel, path: ArrayLike, delta: float,
+                     phi_scale: float = 10.0) -> tuple[float, float]:
     """``(share, excluded length)``: the share of the path's length (between its first and
     last sample within ``delta`` of the diagram) whose steps have both ends within ``delta``,
     and the length outside that stretch (the two retraction climbs)."""

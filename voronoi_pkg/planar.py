@@ -17,15 +17,19 @@ orientation slice and the simplified Voronoi diagram is an arrangement of straig
 A scene file (JSON) can move the base, change the platform length, replace the boundary and
 add convex polygonal obstacles; the paper's scene is :func:`paper_model`. No ROS imports.
 """
+from __future__ import annotations
+
 import math
+from collections.abc import Hashable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from paramotion.errors import UserError
 from paramotion.jsonfile import load_json_object
-from voronoi_pkg.distance import compile_rho
+from voronoi_pkg.distance import RhoProgram, compile_rho
 from voronoi_pkg.predicates import (
     And,
     Delta,
@@ -52,7 +56,7 @@ _CHUNK = 1 << 16
 CONSTRUCTS = ('singularity', 'collision')
 
 
-def check_without(without) -> tuple:
+def check_without(without: Iterable[str] | None) -> tuple[str, ...]:
     """The ablation names as a tuple; refuses unknown names with one line."""
     names = tuple(w for w in (without or ()) if w)
     bad = [w for w in names if w not in CONSTRUCTS]
@@ -80,7 +84,7 @@ class Domain:
     def periodic(self) -> bool:
         return self.phi[1] - self.phi[0] >= 2 * math.pi - 1e-12
 
-    def contains(self, q) -> np.ndarray:
+    def contains(self, q: ArrayLike) -> np.ndarray:
         q = np.asarray(q, dtype=float)
         inside = ((self.x[0] <= q[..., 0]) & (q[..., 0] <= self.x[1])
                   & (self.y[0] <= q[..., 1]) & (q[..., 1] <= self.y[1]))
@@ -138,7 +142,7 @@ class PlanarModel:
                         self.singular_keys.append(key)
 
     # -- geometry ------------------------------------------------------------------------------
-    def points(self, q) -> dict:
+    def points(self, q: ArrayLike) -> dict[Hashable, np.ndarray]:
         """World coordinates of every labelled point for configurations ``q`` (..., 3)."""
         q = np.asarray(q, dtype=float)
         c, s = np.cos(q[..., 2]), np.sin(q[..., 2])
@@ -150,7 +154,8 @@ class PlanarModel:
                                    q[..., 1] + s * p[0] + c * p[1]], axis=-1)
         return out
 
-    def determinants(self, q, program='total', stack: bool = True):
+    def determinants(self, q: ArrayLike, program: str | RhoProgram = 'total',
+                     stack: bool = True) -> np.ndarray | list[np.ndarray]:
         """Determinants read by ``program`` at ``q``: ``(n_keys, ...)``."""
         prog = self.programs[program] if isinstance(program, str) else program
         return evaluate_determinants(prog.keys, self.points(q), stack)
@@ -167,19 +172,21 @@ class PlanarModel:
         outs = [o.reshape(q.shape[:-1]) for o in outs]
         return outs[0] if len(outs) == 1 else tuple(outs)
 
-    def rho(self, q, program: str = 'total') -> np.ndarray:
+    def rho(self, q: ArrayLike, program: str = 'total') -> np.ndarray:
         """Distance measure rho (section 4) at configurations ``q`` (..., 3), vectorised."""
         prog = self.programs[program]
         return self._chunked(q, lambda c: prog.rho(self.determinants(c, prog, False)),
                              [float])
 
-    def evaluate(self, q, program: str = 'total') -> tuple:
+    def evaluate(self, q: ArrayLike,
+                 program: str = 'total') -> tuple[np.ndarray, np.ndarray]:
         """``(rho, active_leaf)`` at configurations ``q`` (..., 3)."""
         prog = self.programs[program]
         return self._chunked(q, lambda c: prog.evaluate(self.determinants(c, prog, False)),
                              [float, np.int32])
 
-    def contact_values(self, q, program: str = 'total') -> tuple:
+    def contact_values(self, q: ArrayLike,
+                       program: str = 'total') -> tuple[np.ndarray, np.ndarray]:
         """Value and deciding determinant code of every contact (root child of rho's tree,
         :mod:`voronoi_pkg.ties`) at configurations ``q`` (..., 3): ``(n_contacts, ...)``
         each."""
@@ -189,7 +196,8 @@ class PlanarModel:
         n = vals.shape[0]
         return vals.reshape((n,) + q.shape[:-1]), codes.reshape((n,) + q.shape[:-1])
 
-    def fields(self, q, program: str = 'total') -> tuple:
+    def fields(self, q: ArrayLike, program: str = 'total'
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``(rho, contact, code, cell)`` at ``q`` in one pass: rho, the smallest contact,
         the determinant deciding it, and ``cell``, the sign vector of the pure-condition
         determinants (the singularity cell) as an integer."""
@@ -213,14 +221,14 @@ class PlanarModel:
 
         return self._chunked(q, one, [float, np.int32, np.int32, np.int64])
 
-    def singular_signs(self, q) -> np.ndarray:
+    def singular_signs(self, q: ArrayLike) -> np.ndarray:
         """Signs of the pure-condition determinants, ``(n_singular, ...)`` of -1/0/+1."""
         if not self.singular_keys:                  # singularities switched off
             return np.zeros((0,) + np.shape(q)[:-1])
         pts = self.points(q)
         return np.sign(evaluate_determinants(self.singular_keys, pts))
 
-    def swept_hits(self, a, b) -> np.ndarray:
+    def swept_hits(self, a: ArrayLike, b: ArrayLike) -> np.ndarray:
         """Whether the platform, moving straight from configurations ``a`` to ``b`` (each
         ``(n, 3)``, one small step), sweeps across a fixed scene segment: the quadrilateral
         P3(a) P4(a) P4(b) P3(b) meets the segment (closed test). Samples of rho step over a
@@ -248,7 +256,7 @@ class PlanarModel:
             hit[k] |= (np.all((inside > 0) | flat, axis=0) | np.all((inside < 0) | flat, axis=0))
         return hit
 
-    def diagnose(self, q) -> list:
+    def diagnose(self, q: ArrayLike) -> list[tuple[str, float]]:
         """Names and rho values of the AND-ed factors that fail (rho <= 0) at one ``q``."""
         q = np.asarray(q, dtype=float).reshape(3)
         failures = []
@@ -276,8 +284,9 @@ def _closed_cross(p, q, r, s):
     return (o1 * o2 <= 0) & (o3 * o4 <= 0) & boxes
 
 
-def planar_model(base, length: float, boundary, obstacles, domain: Domain,
-                 without=()) -> PlanarModel:
+def planar_model(base: Sequence[ArrayLike], length: float, boundary: Sequence[ArrayLike],
+                 obstacles: Iterable[Sequence[ArrayLike]], domain: Domain,
+                 without: Iterable[str] | None = ()) -> PlanarModel:
     """Build a planar model: base segment, platform length, boundary polygon (its edges are
     obstacles, as in the paper), convex obstacle polygons (counter-clockwise) and the domain.
     ``without``: constructs switched off (:data:`CONSTRUCTS`): their predicates are left out
@@ -325,7 +334,8 @@ def planar_model(base, length: float, boundary, obstacles, domain: Domain,
     return PlanarModel(fixed, moving, predicates, domain, segments)
 
 
-def paper_model(domain: Domain | None = None, without=()) -> PlanarModel:
+def paper_model(domain: Domain | None = None,
+                without: Iterable[str] | None = ()) -> PlanarModel:
     """Section 6 exactly: P1 and P2 of the paper over Fig. 3's region (phi over a full turn)."""
     return planar_model(base=((0.0, 0.0), (15.0, 0.0)), length=10.0,
                          boundary=((-25.0, 40.0), (-25.0, -40.0), (55.0, -40.0), (55.0, 40.0)),
@@ -362,7 +372,7 @@ def _convex_ccw(poly, name):
     return [tuple(v) for v in p]
 
 
-def load_scene(path, without=()) -> PlanarModel:
+def load_scene(path: str | Path, without: Iterable[str] | None = ()) -> PlanarModel:
     """Read a planar scene JSON file; keys (all optional, defaults = the paper's scene):
 
     ``base`` [[x, y], [x, y]], ``platform_length`` > 0, ``boundary`` polygon (the robot moves

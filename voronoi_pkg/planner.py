@@ -27,11 +27,16 @@ Resolution completeness: "no path" means no connection on the diagram as sampled
 on an ``h`` grid, slices ``dphi`` apart, links within ``link_radius``); passages narrower than
 about a grid spacing can be missed. Different singularity cells are an exact "no path".
 """
+from __future__ import annotations
+
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import breadth_first_order, dijkstra, minimum_spanning_tree
 
@@ -45,6 +50,9 @@ from voronoi_pkg.diagram import (
     slice_fields,
 )
 from voronoi_pkg.ties import on_diagram
+
+if TYPE_CHECKING:
+    from voronoi_pkg.planar import PlanarModel
 
 __all__ = ['KIND_NAMES', 'MAX_GRID_VERTICES', 'PlanResult', 'VoronoiPlanner', 'check_path',
            'densify', 'diagram_segments', 'near_diagram_fraction', 'validate_configuration']
@@ -82,7 +90,7 @@ def _wrap(a):
     return (a + np.pi) % (2 * np.pi) - np.pi
 
 
-def unwrap_phi(points) -> np.ndarray:
+def unwrap_phi(points: ArrayLike) -> np.ndarray:
     """Make phi continuous along a polyline (differences taken modulo 2 pi)."""
     out = np.array(points, dtype=float, copy=True)
     if len(out) > 1:
@@ -90,7 +98,8 @@ def unwrap_phi(points) -> np.ndarray:
     return out
 
 
-def densify(waypoints, step_xy: float = 0.05, step_phi: float = 0.01) -> tuple:
+def densify(waypoints: ArrayLike, step_xy: float = 0.05,
+            step_phi: float = 0.01) -> tuple[np.ndarray, np.ndarray]:
     """Samples along the polyline with |d(x, y)| <= step_xy and |d phi| <= step_phi.
 
     Returns ``(samples (M, 3), segment_of_sample (M,))``; phi is used as given (unwrapped).
@@ -110,7 +119,9 @@ def densify(waypoints, step_xy: float = 0.05, step_phi: float = 0.01) -> tuple:
     return samples, seg
 
 
-def check_path(model, waypoints, step_xy: float = 0.05, step_phi: float = 0.01) -> tuple:
+def check_path(model: PlanarModel, waypoints: ArrayLike, step_xy: float = 0.05,
+               step_phi: float = 0.01
+               ) -> tuple[bool, float, np.ndarray, np.ndarray, np.ndarray]:
     """Dense check of a polyline in configuration space.
 
     Returns ``(ok, min_rho, bad_segments, samples, rho)``: rho must stay positive at every
@@ -129,7 +140,7 @@ def check_path(model, waypoints, step_xy: float = 0.05, step_phi: float = 0.01) 
     return (not bad.any()), float(rho.min()), bad_segments, samples, rho
 
 
-def validate_configuration(model, q, name: str) -> None:
+def validate_configuration(model: PlanarModel, q: ArrayLike, name: str) -> None:
     """Refuse a query configuration that is not finite, outside the domain, or not free."""
     q = np.asarray(q, dtype=float)
     if q.shape != (3,) or not np.all(np.isfinite(q)):
@@ -178,7 +189,8 @@ def _bottleneck(n_nodes, u, v, clear, s_id, g_id):
     return worst
 
 
-def near_diagram_fraction(model, path, delta: float, phi_scale: float) -> float:
+def near_diagram_fraction(model: PlanarModel, path: ArrayLike, delta: float,
+                          phi_scale: float) -> float:
     """Length share of a dense ``path`` (phi weighted by ``phi_scale``) whose samples lie
     within ``delta`` in x or y of the diagram: a probe there has another smallest contact,
     decided by another determinant (:mod:`voronoi_pkg.ties`)."""
@@ -196,7 +208,7 @@ def near_diagram_fraction(model, path, delta: float, phi_scale: float) -> float:
     return float(length[near[:-1] & near[1:]].sum() / total) if total > 0 else 1.0
 
 
-def diagram_segments(result: 'PlanResult') -> np.ndarray:
+def diagram_segments(result: PlanResult) -> np.ndarray:
     """The diagram edges a found path used, ``(m, 2, 3)`` pairs of configurations."""
     if not result.found:
         return np.zeros((0, 2, 3))
@@ -216,9 +228,10 @@ class VoronoiPlanner:
     search needs them, and cached for later queries (a node serves many requests).
     """
 
-    def __init__(self, model, h=1.0, dphi_deg=2.5, check_step=0.05, check_dphi=0.01,
-                 phi_scale=None, link_radius=None, clearance_fraction=0.5,
-                 max_iterations=500):
+    def __init__(self, model: PlanarModel, h: float = 1.0, dphi_deg: float = 2.5,
+                 check_step: float = 0.05, check_dphi: float = 0.01,
+                 phi_scale: float | None = None, link_radius: float | None = None,
+                 clearance_fraction: float = 0.5, max_iterations: int = 500) -> None:
         if not (h > 0 and dphi_deg > 0 and check_step > 0 and check_dphi > 0):
             raise UserError('planner resolutions must be positive')
         self.model = model
@@ -315,7 +328,7 @@ class VoronoiPlanner:
         return sorted(ks, key=lambda k: key(self.phis[k])), key
 
     # -- retraction ----------------------------------------------------------------------------
-    def retract(self, q) -> tuple:
+    def retract(self, q: ArrayLike) -> tuple[np.ndarray, bool]:
         """Climb rho from ``q`` within its slice onto the diagram (:mod:`voronoi_pkg.ties`).
 
         In a slice every contact is piecewise affine, so rho increases fastest along the
@@ -523,7 +536,8 @@ class VoronoiPlanner:
             return seq, kind[edges]
         raise RuntimeError('lazy search did not converge; raise max_iterations')
 
-    def plan(self, start, goal, progress=None) -> PlanResult:
+    def plan(self, start: ArrayLike, goal: ArrayLike,
+             progress: Callable[[str], object] | None = None) -> PlanResult:
         """Plan from ``start`` to ``goal`` (each ``(x, y, phi_rad)``); see the module docs.
 
         The steps: a singularity certificate (no search when start and goal lie in different

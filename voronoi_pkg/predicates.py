@@ -25,9 +25,13 @@ recognised as ``NOT``-free ``-[p3 p5 p8]``: :func:`canonical` returns the sorted
 permutation sign. Point coordinates are supplied by a model as a mapping label -> array
 ``(..., d)``; nothing here knows about robots. No ROS imports.
 """
+from __future__ import annotations
+
+from collections.abc import Hashable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 __all__ = [
     'And', 'Delta', 'Not', 'Or', 'Xor', 'bracket', 'bracket3', 'bracket4', 'canonical',
@@ -40,7 +44,7 @@ __all__ = [
 # Determinants of homogeneous coordinates
 # ---------------------------------------------------------------------------------------------
 
-def bracket3(a, b, c):
+def bracket3(a: ArrayLike, b: ArrayLike, c: ArrayLike) -> np.ndarray:
     """``[a b c]`` for planar points ``(..., 2)``: det of columns ``(x, y, 1)``.
 
     Equals ``(b - a) x (c - a)``, twice the signed area of triangle abc (positive when a, b, c
@@ -53,7 +57,7 @@ def bracket3(a, b, c):
             - (c[..., 0] - a[..., 0]) * (b[..., 1] - a[..., 1]))
 
 
-def bracket4(a, b, c, d):
+def bracket4(a: ArrayLike, b: ArrayLike, c: ArrayLike, d: ArrayLike) -> np.ndarray:
     """``[a b c d]`` for spatial points ``(..., 3)``: det of columns ``(x, y, z, 1)``.
 
     Subtracting the first column and expanding along the homogeneous row gives
@@ -69,7 +73,7 @@ def bracket4(a, b, c, d):
              + u[..., 2] * (v[..., 0] * w[..., 1] - v[..., 1] * w[..., 0]))
 
 
-def bracket(*points):
+def bracket(*points: ArrayLike) -> np.ndarray:
     """``[p_1 ... p_n]`` for n = 3 planar or n = 4 spatial points."""
     if len(points) == 3:
         return bracket3(*points)
@@ -78,7 +82,7 @@ def bracket(*points):
     raise ValueError(f'a bracket takes 3 (planar) or 4 (spatial) points, got {len(points)}')
 
 
-def canonical(labels):
+def canonical(labels: Iterable[Hashable]) -> tuple[tuple[Hashable, ...], int]:
     """Sorted label tuple and the sign of the permutation that sorts ``labels``.
 
     ``[p_i p_j p_k] = sign * [p_sorted]``: swapping two columns negates a determinant.
@@ -113,7 +117,7 @@ class Delta:
 
     points: tuple
 
-    def __init__(self, *points):
+    def __init__(self, *points: Hashable | Sequence[Hashable]) -> None:
         if len(points) == 1 and isinstance(points[0], (tuple, list)):
             points = tuple(points[0])
         if len(points) not in (3, 4):
@@ -134,7 +138,7 @@ class And:
 
     children: tuple
 
-    def __init__(self, *children):
+    def __init__(self, *children: Predicate) -> None:
         object.__setattr__(self, 'children', tuple(children))
 
 
@@ -144,16 +148,20 @@ class Or:
 
     children: tuple
 
-    def __init__(self, *children):
+    def __init__(self, *children: Predicate) -> None:
         object.__setattr__(self, 'children', tuple(children))
 
 
-def Xor(a, b):  # noqa: N802 - reads like the other node constructors
+Predicate = Delta | Not | And | Or
+"""An AND-OR predicate tree node."""
+
+
+def Xor(a: Predicate, b: Predicate) -> Or:  # noqa: N802 - reads like the other node constructors
     """Exclusive or, written as the paper does: ``(a AND NOT b) OR (NOT a AND b)``."""
     return Or(And(a, Not(b)), And(Not(a), b))
 
 
-def pure_condition_free(factors):
+def pure_condition_free(factors: Iterable[Sequence[Hashable]]) -> And:
     """Singularity-free region of a factorised pure condition, eq. (2).
 
     ``factors`` lists the point-label tuples of the determinants whose product is the pure
@@ -163,7 +171,7 @@ def pure_condition_free(factors):
     return And(*(Or(Delta(*f), Not(Delta(*f))) for f in factors))
 
 
-def segments_cross(a, b, c, d):
+def segments_cross(a: Hashable, b: Hashable, c: Hashable, d: Hashable) -> And:
     """2D basic contact: segment ab properly crosses segment cd (section 6, one term of P2).
 
     ``(Delta(a,b,c) XOR Delta(a,b,d)) AND (Delta(a,c,d) XOR Delta(b,c,d))``: c and d lie on
@@ -172,7 +180,8 @@ def segments_cross(a, b, c, d):
     return And(Xor(Delta(a, b, c), Delta(a, b, d)), Xor(Delta(a, c, d), Delta(b, c, d)))
 
 
-def segment_pierces_triangle(a, b, c, d, e):
+def segment_pierces_triangle(a: Hashable, b: Hashable, c: Hashable, d: Hashable,
+                             e: Hashable) -> And:
     """3D basic contact of section 3: segment ab crosses triangle cde.
 
     ``(Delta(a,c,d,e) XOR Delta(b,c,d,e)) AND [(Delta(a,b,c,d) AND Delta(a,b,d,e) AND
@@ -184,7 +193,7 @@ def segment_pierces_triangle(a, b, c, d, e):
                Or(And(e1, e2, e3), And(Not(e1), Not(e2), Not(e3))))
 
 
-def fuse(*predicates):
+def fuse(*predicates: Predicate) -> And:
     """Join singularity-free and collision-free predicates through an AND node (section 3)."""
     flat = []
     for p in predicates:
@@ -192,7 +201,7 @@ def fuse(*predicates):
     return And(*flat)
 
 
-def determinant_keys(tree):
+def determinant_keys(tree: Predicate) -> list[tuple[Hashable, ...]]:
     """Canonical keys of every determinant in ``tree``, in first-seen order."""
     keys = []
 
@@ -211,7 +220,9 @@ def determinant_keys(tree):
     return keys
 
 
-def evaluate_determinants(keys, points, stack=True):
+def evaluate_determinants(keys: Iterable[Sequence[Hashable]],
+                          points: Mapping[Hashable, ArrayLike],
+                          stack: bool = True) -> np.ndarray | list[np.ndarray]:
     """Values of the canonical determinants ``keys`` for ``points`` (label -> ``(..., d)``).
 
     Returns an array ``(len(keys), ...)``, or a list of arrays with ``stack=False`` (faster
@@ -221,7 +232,7 @@ def evaluate_determinants(keys, points, stack=True):
     return np.stack(rows) if stack else rows
 
 
-def holds(tree, dets):
+def holds(tree: Predicate, dets: Mapping[tuple[Hashable, ...], ArrayLike]) -> np.ndarray:
     """Boolean value of ``tree`` given ``dets`` (canonical key -> value array).
 
     Implements eq. (1) literally (``Delta`` is ``value > 0``), for checking the real-valued
@@ -240,7 +251,7 @@ def holds(tree, dets):
     return out
 
 
-def to_text(tree):
+def to_text(tree: Predicate) -> str:
     """Human-readable form, e.g. ``(D(1,2,3) | ~D(1,2,3)) & ...``."""
     if isinstance(tree, Delta):
         return 'D(' + ','.join(str(p) for p in tree.points) + ')'

@@ -31,15 +31,19 @@ minimum over them, so the simplified Voronoi diagram is where two contacts tie):
 Configuration ``q = (x, y, z, roll, pitch, yaw)``: position of P7 (m) and ZYX Euler angles
 (rad) of the platform. Everything is evaluated for many poses at once. No ROS imports.
 """
+from __future__ import annotations
+
 import math
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from paramotion.errors import UserError
 from paramotion.jsonfile import load_json_object
-from voronoi_pkg.distance import compile_rho
+from voronoi_pkg.distance import RhoProgram, compile_rho
 from voronoi_pkg.predicates import (
     And,
     Delta,
@@ -77,7 +81,7 @@ _CHUNK = 1 << 12
 _SMALL = 256     # below this batch size the flat evaluator is faster
 
 
-def rpy_matrix(rpy):
+def rpy_matrix(rpy: ArrayLike) -> np.ndarray:
     """Rotation matrices ``(..., 3, 3)`` of ZYX Euler angles ``(..., 3)`` = roll, pitch, yaw."""
     rpy = np.asarray(rpy, dtype=float)
     cr, sr = np.cos(rpy[..., 0]), np.sin(rpy[..., 0])
@@ -95,7 +99,7 @@ _BOX_QUADS = ((0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 
               (1, 5, 7, 3))
 
 
-def box_mesh(center, size):
+def box_mesh(center: ArrayLike, size: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Vertices (8, 3), quadrilateral faces (6, 4) with outward counter-clockwise order, edges
     (12, 2)."""
     c = np.asarray(center, dtype=float)
@@ -107,7 +111,7 @@ def box_mesh(center, size):
     return verts, np.array(_BOX_QUADS), np.array(edges)
 
 
-def segment_pierces_face(a, b, face):
+def segment_pierces_face(a: int, b: int, face: Sequence[int]) -> And:
     """Segment ab crosses the convex planar polygon ``face`` (labels, counter-clockwise).
 
     Section 3's segment-triangle contact for a convex polygon: a and b on opposite sides of the
@@ -122,13 +126,13 @@ def segment_pierces_face(a, b, face):
                Or(And(*sides), And(*(Not(e) for e in sides))))
 
 
-def point_inside_box(p, faces):
+def point_inside_box(p: int, faces: Iterable[Sequence[int]]) -> And:
     """Point p strictly inside the convex polyhedron with outward counter-clockwise ``faces``:
     ``[f0 f1 f2 p] > 0`` for every face (``[f0 f1 f2 p] = -(p - f0) . n_out``)."""
     return And(*(Delta(f[0], f[1], f[2], p) for f in faces))
 
 
-def segments_meet(a, b, c, d, e1, e2):
+def segments_meet(a: int, b: int, c: int, d: int, e1: int, e2: int) -> tuple[And, Or]:
     """Two segments ab, cd in space pass through each other: coplanar (``[a b c d] = 0``) and
     crossing in the projection along their common normal (derived points ``e1`` on the normal
     through a, ``e2`` through c). Returns ``(cross, free)``: the crossing predicate and the
@@ -138,7 +142,7 @@ def segments_meet(a, b, c, d, e1, e2):
     return cross, Or(Not(cross), Or(Delta(a, b, c, d), Not(Delta(a, b, c, d))))
 
 
-def robot_segment_pairs():
+def robot_segment_pairs() -> tuple[tuple[tuple[int, int], tuple[int, int]], ...]:
     """Legs and platform edges that share no attachment point (the leg-leg contacts)."""
     segs = list(LEGS) + list(PLATFORM_EDGES)
     out = []
@@ -159,7 +163,7 @@ class FlatContacts:
     per node, and all 4x4 determinants in one vectorised expression.
     """
 
-    def __init__(self, program, labels):
+    def __init__(self, program: RhoProgram, labels: Iterable[int]) -> None:
         self.labels = list(labels)
         where = {lab: i for i, lab in enumerate(self.labels)}
         self.key_idx = np.array([[where[lab] for lab in key] for key in program.keys])
@@ -194,7 +198,7 @@ class FlatContacts:
             starts = np.r_[0, np.cumsum(counts)[:-1]]
             self.groups.append((op == 'min', ids, kids, starts, counts))
 
-    def determinants(self, P):
+    def determinants(self, P: np.ndarray) -> np.ndarray:
         """All determinants ``(n_keys, n)`` from the point array ``P`` (n_labels, n, 3)."""
         if P.shape[1] >= _SMALL:            # row by row: no (n_keys, n, 3) temporaries
             return np.stack([bracket4(*(P[i] for i in row)) for row in self.key_idx])
@@ -204,7 +208,8 @@ class FlatContacts:
                  + u[..., 1] * (v[..., 2] * w[..., 0] - v[..., 0] * w[..., 2])
                  + u[..., 2] * (v[..., 0] * w[..., 1] - v[..., 1] * w[..., 0]))
 
-    def evaluate(self, dets, codes=True):
+    def evaluate(self, dets: np.ndarray,
+                 codes: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
         """Values ``(n_contacts, n)`` and (if ``codes``) active-leaf codes of the contacts."""
         n = dets.shape[1]
         vals = np.empty((self.n_nodes, n))
@@ -341,7 +346,7 @@ class Spatial321Model:
         return names
 
     # -- geometry ------------------------------------------------------------------------------
-    def point_array(self, q):
+    def point_array(self, q: ArrayLike) -> np.ndarray:
         """All labelled points at poses ``q`` (n, 6) as one array ``(n_labels, n, 3)`` in the
         order of ``self.labels``: fixed (base, box corners), platform, derived."""
         q = np.asarray(q, dtype=float).reshape(-1, 6)
@@ -363,14 +368,15 @@ class Spatial321Model:
         P[k0 + 1::2] = c + nrm
         return P
 
-    def points(self, q, P=None):
+    def points(self, q: ArrayLike, P: np.ndarray | None = None) -> dict[int, np.ndarray]:
         """Labelled points at poses ``q`` (..., 6): base, box corners, platform, derived."""
         q = np.asarray(q, dtype=float)
         P = self.point_array(q) if P is None else P
         shape = q.shape[:-1] + (3,)
         return {lab: P[i].reshape(shape) for i, lab in enumerate(self.labels)}
 
-    def extra_values(self, q, pts=None):
+    def extra_values(self, q: ArrayLike,
+                     pts: Mapping[int, np.ndarray] | None = None) -> np.ndarray:
         """Bounds and leg-length margins ``(n_extra, ...)`` (positive = satisfied)."""
         q = np.asarray(q, dtype=float)
         rows = []
@@ -399,7 +405,7 @@ class Spatial321Model:
         outs = [np.moveaxis(o, 0, -1).reshape(o.shape[1:] + q.shape[:-1]) for o in outs]
         return outs[0] if len(outs) == 1 else tuple(outs)
 
-    def rho(self, q):
+    def rho(self, q: ArrayLike) -> np.ndarray:
         """rho of the fused predicate (all contacts, bounds, leg limits) at poses (..., 6)."""
         prog = self.program
 
@@ -413,7 +419,7 @@ class Spatial321Model:
             return np.minimum(r, self.extra_values(c, self.points(c, P)).min(axis=0))
         return self._chunked(q, fn, [(float, ())])
 
-    def contact_values(self, q):
+    def contact_values(self, q: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Per contact: value and active leaf, ``(n_contacts, ...)`` each.
 
         Contacts are the root's children (the fused factors) followed by the bounds and
@@ -439,14 +445,14 @@ class Spatial321Model:
         n = len(self.contacts) + n_extra
         return self._chunked(q, fn, [(float, (n,)), (np.int32, (n,))])
 
-    def contact_names(self):
+    def contact_names(self) -> list[str]:
         """Readable name of each row of :meth:`contact_values`."""
         return [c.name for c in self.contacts] + list(self.extra_names)
 
-    def singular_signs(self, q):
+    def singular_signs(self, q: ArrayLike) -> np.ndarray:
         return np.sign(evaluate_determinants(self.singular_keys, self.points(q)))
 
-    def thin_state(self, q):
+    def thin_state(self, q: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Sign of ``[a b c d]`` and the projected crossing of every leg-leg pair, (pairs, ...).
 
         Passing through each other between two poses = the sign changes while the projections
@@ -458,7 +464,7 @@ class Spatial321Model:
                           for p in self.cross_programs])
         return signs, cross
 
-    def diagnose(self, q):
+    def diagnose(self, q: ArrayLike) -> list[tuple[str, float]]:
         """Names and values of every violated contact, bound and leg limit at one pose."""
         q = np.asarray(q, dtype=float).reshape(6)
         pts = self.points(q)
@@ -472,43 +478,45 @@ class Spatial321Model:
                 out.append((name, float(v)))
         return out
 
-    def in_bounds(self, q):
+    def in_bounds(self, q: ArrayLike) -> np.ndarray:
         q = np.asarray(q, dtype=float)
         return (np.all(q[..., :3] >= self.position_min, axis=-1)
                 & np.all(q[..., :3] <= self.position_max, axis=-1)
                 & np.all(np.abs(q[..., 3:]) <= self.angle_max, axis=-1))
 
-    def leg_lengths(self, q):
+    def leg_lengths(self, q: ArrayLike) -> np.ndarray:
         """Leg lengths ``(..., 6)`` in the order of :data:`LEGS`."""
         pts = self.points(q)
         return np.stack([np.linalg.norm(pts[b] - pts[a], axis=-1) for a, b in LEGS], axis=-1)
 
     @property
-    def scale(self):
+    def scale(self) -> np.ndarray:
         """Metric weights of (x, y, z, roll, pitch, yaw): metres, and metres per radian."""
         return np.r_[1.0, 1.0, 1.0, [self.angle_scale] * 3]
 
-    def lower(self):
+    def lower(self) -> np.ndarray:
         return np.r_[self.position_min, [-self.angle_max] * 3]
 
-    def upper(self):
+    def upper(self) -> np.ndarray:
         return np.r_[self.position_max, [self.angle_max] * 3]
 
-    def sample(self, rng, n):
+    def sample(self, rng: np.random.Generator, n: int) -> np.ndarray:
         return rng.uniform(self.lower(), self.upper(), (n, 6))
 
-    def world_points(self, q):
+    def world_points(self, q: ArrayLike) -> dict[int, np.ndarray]:
         """Platform and base points for drawing one pose ``q``."""
         return {k: np.asarray(v) for k, v in self.points(np.asarray(q, dtype=float)).items()}
 
 
-def demo_model(boxes=DEMO_BOXES, leg_limits=DEMO_LEG_LIMITS):
+def demo_model(boxes: Iterable[Mapping[str, Sequence[float]]] = DEMO_BOXES,
+               leg_limits: tuple[float, float] | None = DEMO_LEG_LIMITS) -> Spatial321Model:
     return Spatial321Model(DEMO_BASE, DEMO_PLATFORM, tuple(boxes), DEMO_BOUNDS['position_min'],
                            DEMO_BOUNDS['position_max'], math.radians(DEMO_BOUNDS['angle_max_deg']),
                            leg_limits)
 
 
-def load_scene(path, leg_limits=None):
+def load_scene(path: str | Path,
+               leg_limits: tuple[float, float] | None = None) -> Spatial321Model:
     """Spatial scene JSON: ``boxes`` [{"center": [x, y, z], "size": [sx, sy, sz]}, ...],
     optional ``base`` {"1": [x, y, z], ... "6": ...}, ``platform`` {"7": ..., "8": ...,
     "9": ...} (platform frame, P7 at the origin), ``bounds`` {"position_min", "position_max",
@@ -568,7 +576,8 @@ def load_scene(path, leg_limits=None):
 # Dense path checking
 # ---------------------------------------------------------------------------------------------
 
-def densify6(waypoints, step, dangle):
+def densify6(waypoints: ArrayLike, step: float,
+             dangle: float) -> tuple[np.ndarray, np.ndarray]:
     """Samples along a 6-D polyline: |d position| <= step, every |d angle| <= dangle."""
     w = np.asarray(waypoints, dtype=float)
     if len(w) < 2:
@@ -583,7 +592,8 @@ def densify6(waypoints, step, dangle):
     return samples, np.r_[seg, len(d) - 1]
 
 
-def bad_samples(model, samples):
+def bad_samples(model: Spatial321Model,
+                samples: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per consecutive sample pair of a dense polyline: refused? ``(n - 1,)`` bool.
 
     A pair is refused if either sample has rho <= free_tol (contact, containment, bounds, leg
@@ -599,7 +609,8 @@ def bad_samples(model, samples):
     return bad, rho
 
 
-def check_path6(model, waypoints, step=0.005, dangle=0.01):
+def check_path6(model: Spatial321Model, waypoints: ArrayLike, step: float = 0.005,
+                dangle: float = 0.01) -> tuple[bool, float, np.ndarray]:
     """Dense check of a 6-D polyline: ``(ok, min_rho, bad segment indices)``."""
     samples, seg = densify6(waypoints, step, dangle)
     if len(samples) < 2:
@@ -609,7 +620,7 @@ def check_path6(model, waypoints, step=0.005, dangle=0.01):
     return (not bad.any()), float(rho.min()), np.unique(seg[:-1][bad])
 
 
-def validate_pose(model, q, name):
+def validate_pose(model: Spatial321Model, q: ArrayLike, name: str) -> None:
     q = np.asarray(q, dtype=float)
     if q.shape != (6,) or not np.all(np.isfinite(q)):
         raise UserError(f'{name}: expected six finite numbers (x, y, z, roll, pitch, yaw)')

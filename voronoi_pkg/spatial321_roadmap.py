@@ -38,10 +38,15 @@ built slice by slice as in :mod:`voronoi_pkg.diagram`; it is reached and followe
 
 No ROS imports.
 """
+from __future__ import annotations
+
 import time
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 from scipy.spatial import cKDTree
@@ -56,6 +61,9 @@ from voronoi_pkg.spatial321 import (
     validate_pose,
 )
 from voronoi_pkg.ties import two_smallest
+
+if TYPE_CHECKING:
+    from voronoi_pkg.spatial321 import Spatial321Model
 
 __all__ = ['DiagramRoadmapPlanner', 'SpatialPlanResult', 'project_to_tie', 'retract',
            'tie_measure']
@@ -93,7 +101,8 @@ def _leaf_gradients(model, q, codes, h=1e-6):
     return ((vals[1:] - vals[:1]) / h).T
 
 
-def tie_measure(model, q, grads: bool = False) -> dict:
+def tie_measure(model: Spatial321Model, q: ArrayLike,
+                grads: bool = False) -> dict[str, np.ndarray]:
     """Distance of poses ``q`` (M, 6) from the tie set of their two smallest contacts.
 
     Returns a dict: ``rho``, ``gap`` (f2 - f1), ``dist`` (gap / |grad(f2 - f1)|, scaled
@@ -115,8 +124,10 @@ def tie_measure(model, q, grads: bool = False) -> dict:
     return out
 
 
-def retract(model, q, tie_tol=1e-3, max_steps=30, t_first=1e-3, t_max=0.4, bisections=16,
-            keep_chain=()):
+def retract(model: Spatial321Model, q: ArrayLike, tie_tol: float = 1e-3, max_steps: int = 30,
+            t_first: float = 1e-3, t_max: float = 0.4, bisections: int = 16,
+            keep_chain: Iterable[int] = ()
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[int, np.ndarray]]:
     """Steepest ascent of rho from poses ``q`` (M, 6) until two contacts tie.
 
     Returns ``(points, on_tie, steps, chains)``: the final poses, whether each is within
@@ -198,7 +209,8 @@ def retract(model, q, tie_tol=1e-3, max_steps=30, t_first=1e-3, t_max=0.4, bisec
     return q, on_tie, steps, {i: np.array(c) for i, c in chains.items()}
 
 
-def project_to_tie(model, q, tie_tol: float = 1e-3, iterations: int = 6) -> tuple:
+def project_to_tie(model: Spatial321Model, q: ArrayLike, tie_tol: float = 1e-3,
+                   iterations: int = 6) -> tuple[np.ndarray, np.ndarray]:
     """Nearest point of the tie set, by Newton steps on ``f2 - f1 = 0`` (f1, f2: the two
     smallest distinct contacts, re-chosen at every step). Exact in one step for moves in
     position at a fixed orientation while the pair does not change. Poses that do not converge
@@ -243,9 +255,10 @@ class SpatialPlanResult:
 class DiagramRoadmapPlanner:
     """Roadmap on the simplified Voronoi diagram of a 3-2-1 model (see module docstring)."""
 
-    def __init__(self, model, n_samples=400, k=8, seed=0, check_step=0.005, check_dangle=0.01,
-                 tie_tol=1e-3, diagram_tol=2e-3, probe_step=0.01, max_gap=0.03,
-                 batch_edges=40, shortcut=True):
+    def __init__(self, model: Spatial321Model, n_samples: int = 400, k: int = 8, seed: int = 0,
+                 check_step: float = 0.005, check_dangle: float = 0.01,
+                 tie_tol: float = 1e-3, diagram_tol: float = 2e-3, probe_step: float = 0.01,
+                 max_gap: float = 0.03, batch_edges: int = 40, shortcut: bool = True) -> None:
         if n_samples < 10 or k < 2:
             raise UserError(f'samples {n_samples}, neighbours {k}: need at least 10 samples '
                             'and 2 neighbours')
@@ -275,7 +288,8 @@ class DiagramRoadmapPlanner:
         return m.lower() + u * (m.upper() - m.lower())
 
     # -- edges along the diagram -----------------------------------------------------------------
-    def trace(self, starts, ends, rounds: int = 3) -> list:
+    def trace(self, starts: ArrayLike, ends: ArrayLike,
+              rounds: int = 3) -> list[np.ndarray | None]:
         """Trace edges between diagram points along the diagram.
 
         Probes every ``probe_step`` (scaled metric) along the chord are projected onto the
@@ -342,7 +356,8 @@ class DiagramRoadmapPlanner:
         return list(~refused)
 
     # -- planning ------------------------------------------------------------------------------
-    def plan(self, start, goal, progress=None) -> SpatialPlanResult:
+    def plan(self, start: ArrayLike, goal: ArrayLike,
+             progress: Callable[[str], object] | None = None) -> SpatialPlanResult:
         """Plan from ``start`` to ``goal`` (6-D poses). The steps: a singularity certificate,
         Halton samples retracted onto the diagram with start and goal (:meth:`_roadmap_nodes`),
         candidate edges between near nodes (:meth:`_candidate_edges`), a lazy shortest-path
@@ -549,7 +564,8 @@ class DiagramRoadmapPlanner:
                 i = jump[0]
         return out
 
-    def path_on_diagram(self, path, way, n_chain) -> dict:
+    def path_on_diagram(self, path: np.ndarray, way: np.ndarray,
+                        n_chain: Sequence[int]) -> dict[str, float]:
         """Length share of the path within ``diagram_tol`` of a tie, overall and between the
         two retraction chains, and the distance distribution of the path samples."""
         m = self.model
