@@ -1,4 +1,4 @@
-"""``paramotion report [--only PART ...] [--out DIR] [--quick]``: regenerate docs/results/.
+"""``paramotion report [--only PART ...] [--out DIR] [--quick] [--index]``: docs/results/.
 
 Every measured figure the docs quote comes from here. Each part owns a ``report`` module with
 ``write_report(out_dir: Path, quick: bool = False) -> list[Path]`` that reruns that part's
@@ -80,6 +80,10 @@ def run(parts: list[str], out_dir: Path, quick: bool) -> list[Path]:
     for part, files, took in rows:
         previous[part] = (f'| {part} | ' + ', '.join(f'[{f.name}]({f.name})' for f in files)
                           + f' | {took:.0f} s |')
+    for part in REPORTS:  # a page generated earlier (or by the part's own command) is listed
+        page = out_dir / f'{part}.md'
+        if part not in previous and page.exists():
+            previous[part] = f'| {part} | [{page.name}]({page.name}) | not timed |'
     lines += [previous[p] for p in REPORTS if p in previous]
     index.write_text('\n'.join(lines) + '\n')
     return written + [index]
@@ -97,7 +101,7 @@ def _previous_rows(index: Path) -> dict[str, str]:
 
 
 def _cmd(args: argparse.Namespace) -> int:
-    parts = args.only or list(REPORTS)
+    parts = [] if args.index else (args.only or list(REPORTS))
     unknown = [p for p in parts if p not in REPORTS]
     if unknown:
         raise UserError(f'--only {unknown[0]!r}: unknown part (choose from '
@@ -118,4 +122,6 @@ def register(subparsers) -> None:
                    help='output folder (default: docs/results in the source tree)')
     p.add_argument('--quick', action='store_true',
                    help='fewer, shorter runs (noisier figures; each page says so)')
+    p.add_argument('--index', action='store_true',
+                   help='only rewrite the index (README.md) from the pages already there')
     p.set_defaults(func=_cmd)

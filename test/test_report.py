@@ -50,3 +50,12 @@ def test_a_part_without_write_report_is_refused_before_anything_runs(tmp_path, m
     assert main(['report', '--out', str(out)]) == 2
     assert 'write_report' in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_index_lists_pages_already_there_without_running_anything(tmp_path, monkeypatch):
+    monkeypatch.setattr(report, 'REPORTS', {'alpha': 'no_such_module_alpha'})
+    out = tmp_path / 'results'
+    out.mkdir()
+    (out / 'alpha.md').write_text('# alpha\n')
+    assert main(['report', '--index', '--out', str(out)]) == 0
+    assert '| alpha | [alpha.md](alpha.md) | not timed |' in (out / 'README.md').read_text()
