@@ -120,6 +120,7 @@ class Branch:
     heading: tuple
     opened_by: int = None
     end: str = None                 # cusp, dead_end, meet, given_up (None: untraced)
+    end_xy: tuple = None            # where the trace ended
 
 
 @dataclass
@@ -343,6 +344,8 @@ class PaperPlanner:
         if kind in self.cfg.without or (self.event_filter and not self.event_filter(kind, xy)):
             return None
         if self._known(kind, xy):
+            if kind == 'cusp':
+                self._join_known_cusp(xy)
             return None
         idx = self._record(t, kind, xy, detail)
         if kind == 'cusp':
@@ -360,7 +363,8 @@ class PaperPlanner:
         if kind == 'critical':
             return False
         if kind == 'cusp' and n is not None and n.kind == 'vast':
-            return any(math.dist(c, xy) < near for v, _, c in self.edges if v == n.id)
+            return any(math.dist(c, xy) < near for v, _, c in self.edges
+                       if self.same_node(v) == n.id)
         return any(e[1] == kind and math.dist(e[2:4], xy) < near for e in self.events)
 
     def _record(self, t, kind, xy, detail):
@@ -380,9 +384,16 @@ class PaperPlanner:
         return n
 
     def _on_cusp(self, idx, xy):
-        """A new cusp point: a node of the other kind beyond it and an edge to it (L, F)."""
+        """A new cusp point: a node of the other kind beyond it and an edge to it (L, F).
+        A cusp sensed from a vast node where a traced GVD branch of a known narrow node ended
+        is that narrow cell's cusp: the edge joins the known node, no node is created."""
         n = self.nodes[self.current] if self.current is not None else None
         if n is None:
+            return
+        m = self._traced_narrow(xy) if n.kind == 'vast' else None
+        if m is not None:
+            self._add_edge(n.id, m.id, xy, f'cusp joins narrow node {m.id}: a traced GVD '
+                           'branch of it ends here')
             return
         new = self.create_node('narrow' if n.kind == 'vast' else 'vast', xy, idx)
         self.edges.append((n.id, new.id, xy) if n.kind == 'vast' else (new.id, n.id, xy))
@@ -390,6 +401,65 @@ class PaperPlanner:
             new.branches.append(Branch(xy, None, idx))
         if n.kind == 'narrow' and self.mode == 'gvd':
             self._end_branch('cusp')
+
+    def _traced_narrow(self, xy):
+        """The narrow node whose traced GVD branch ended at this cusp (the cusp event that
+        ended it, or the branch's last point, within ``same_event``), if any."""
+        near = self.cfg.same_event
+        for v, w, c in self.edges:
+            if math.dist(c, xy) < near and self._created_from(v, w):
+                return self.nodes[w]
+        for m in self.nodes:
+            if m.kind == 'narrow' and any(b.end == 'cusp' and b.end_xy is not None and
+                                          math.dist(b.end_xy, xy) < near for b in m.branches):
+                return m
+        return None
+
+    def _created_from(self, v, w):
+        """Vast node ``v`` was created while narrow node ``w`` was traced (its cusp ended a
+        GVD branch of ``w``)."""
+        ev = self.nodes[v].created_by
+        return ev is not None and any(b.end == 'cusp' and b.end_xy is not None and
+                                      math.dist(b.end_xy, self.events[ev][2:4]) < 1.0
+                                      for b in self.nodes[w].branches)
+
+    def _join_known_cusp(self, xy):
+        """A known cusp sensed while tracing a narrow node: the vast nodes it belongs to get
+        their edge to this node (F of Algorithm 1), once."""
+        n = self.nodes[self.current] if self.current is not None else None
+        if n is None or n.kind != 'narrow' or self.mode != 'gvd':
+            return
+        near = self.cfg.same_event
+        vast = {v for v, _, c in self.edges if math.dist(c, xy) < near}
+        vast |= {m.id for m in self.nodes if m.kind == 'vast' and m.created_by is not None
+                 and math.dist(self.events[m.created_by][2:4], xy) < near}
+        for v in sorted(vast):
+            self._add_edge(v, n.id, xy, f'known cusp: vast node {v} joins narrow node {n.id}')
+
+    def same_node(self, i: int) -> int:
+        """The node that node ``i`` was found to be (a vast node whose cusp lies on another
+        vast node's boundary circuit is that node), else ``i``."""
+        while self.nodes[i].merged_into is not None:
+            i = self.nodes[i].merged_into
+        return i
+
+    def _dedupe_edges(self):
+        """One edge per cusp between a vast node and a narrow node: once two vast nodes are
+        found to be one, an edge of each carrying the same cusp is kept once (the first)."""
+        kept = []
+        for v, w, c in self.edges:
+            if not any(self.same_node(a) == self.same_node(v) and b == w and
+                       math.dist(k, c) < self.cfg.same_event for a, b, k in kept):
+                kept.append((v, w, c))
+        self.edges[:] = kept
+
+    def _add_edge(self, v, w, xy, detail):
+        """Edge (vast v, narrow w) carrying the cusp xy, unless one carries a cusp near it."""
+        if any(self.same_node(a) == self.same_node(v) and b == w and
+               math.dist(c, xy) < self.cfg.same_event for a, b, c in self.edges):
+            return
+        self.edges.append((v, w, (float(xy[0]), float(xy[1]))))
+        self._record(self.t_sweep, 'cusp_joins', xy, detail)
 
     def find_uncovered_node(self):
         """FindUncoveredNode(N): the uncovered node nearest along the traced paths."""
@@ -798,7 +868,7 @@ class PaperPlanner:
     def _end_branch(self, how):
         br = self.task.get('branch')
         if br is not None:
-            br.end = how
+            br.end, br.end_xy = how, (float(self.pose[0]), float(self.pose[1]))
             self._record(self.t_sweep, 'branch_end', self.pose, f'GVD branch ends: {how}')
         self.task, self.mode = {}, None
         return None
@@ -862,6 +932,7 @@ class PaperPlanner:
                 continue
             if any(math.dist(m.anchor, q) < 0.7 for q in trace):
                 m.covered, m.merged_into = True, n.id
+                self._dedupe_edges()
                 m.closed_by = self._record(self.t_sweep, 'same_cell', m.anchor,
                                            f'vast node {m.id} is vast node {n.id}: its cusp '
                                            'lies on that boundary circuit')
