@@ -13,10 +13,13 @@ only chooses the settings that a detector this small needs:
 * lapping slices ``2 r (1 - overlap)`` apart and tight "followed" tolerances: with a detector
   of range r, any tracking error between slices ``2 r`` apart leaves an unswept strip.
 """
+from __future__ import annotations
+
 from coverage_pkg.planner import PlannerConfig
 
 
-def robot_size_config(radius=0.25, overlap=0.2, **overrides):
+def robot_size_config(radius: float = 0.25, overlap: float = 0.2,
+                      **overrides: float | int | str | bool) -> PlannerConfig:
     """PlannerConfig of the robot-size-detector baseline for a robot of radius ``radius``."""
     values = dict(
         delta=radius, radius=radius, detector='robot',

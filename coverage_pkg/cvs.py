@@ -16,16 +16,19 @@ p leaves FCS_r at a boundary point that is closer to p and sees it too.
 
 This module reads the true world; only the monitor and the scenario use it, never the planner.
 """
+from __future__ import annotations
+
 import math
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy import ndimage
 from scipy.spatial import cKDTree
 
-from coverage_pkg.world import rasterize, raycast_segments
+from coverage_pkg.world import World, rasterize, raycast_segments
 
 
-def segments_clear(p, q, walls):
+def segments_clear(p: ArrayLike, q: ArrayLike, walls: np.ndarray) -> np.ndarray:
     """True where the segment p[i]-q[i] crosses no wall segment (rows x1, y1, x2, y2)."""
     p = np.asarray(p, float)
     q = np.asarray(q, float)
@@ -48,7 +51,8 @@ def segments_clear(p, q, walls):
     return out
 
 
-def cell_clearance(world, free, origin, resolution):
+def cell_clearance(world: World, free: np.ndarray, origin: ArrayLike,
+                   resolution: float) -> np.ndarray:
     """Exact distance from every free cell centre to the nearest wall (0 elsewhere)."""
     import shapely
     ny, nx = free.shape
@@ -63,7 +67,8 @@ def cell_clearance(world, free, origin, resolution):
 class CoverableSet:
     """CVS of a world for a disk robot of radius r and a detector of range delta, on a grid."""
 
-    def __init__(self, world, radius, delta, resolution=0.05):
+    def __init__(self, world: World, radius: float, delta: float,
+                 resolution: float = 0.05) -> None:
         self.world = world
         self.radius = float(radius)
         self.delta = float(delta)
@@ -76,12 +81,12 @@ class CoverableSet:
         self.fcs = lab == lab[sr, sc] if lab[sr, sc] else fcs
         self.mask = self._compute()
 
-    def cell_of(self, xy):
+    def cell_of(self, xy: ArrayLike) -> tuple[int, int]:
         c = int(math.floor((xy[0] - self.origin[0]) / self.res))
         r = int(math.floor((xy[1] - self.origin[1]) / self.res))
         return r, c
 
-    def centers(self, rows, cols):
+    def centers(self, rows: ArrayLike, cols: ArrayLike) -> np.ndarray:
         return np.stack([self.origin[0] + (np.asarray(cols) + 0.5) * self.res,
                          self.origin[1] + (np.asarray(rows) + 0.5) * self.res], axis=-1)
 
@@ -133,11 +138,11 @@ class CoverableSet:
         return mask
 
     @property
-    def area(self):
+    def area(self) -> float:
         """|CVS| in square metres."""
         return float(self.mask.sum()) * self.res ** 2
 
-    def lower_bound_path(self):
+    def lower_bound_path(self) -> float:
         """Path length lower bound |CVS| / (2 delta): a detector sweeps at most 2 delta wide."""
         return self.area / (2.0 * self.delta)
 
@@ -145,7 +150,7 @@ class CoverableSet:
 class CoverageAccumulator:
     """What the detector has seen along the true path: union of B^V_delta(p(t)) on the grid."""
 
-    def __init__(self, cvs, n_rays=None):
+    def __init__(self, cvs: CoverableSet, n_rays: int | None = None) -> None:
         self.cvs = cvs
         self.seen = np.zeros_like(cvs.mask)
         d, res = cvs.delta, cvs.res
@@ -156,7 +161,7 @@ class CoverageAccumulator:
         self._off = (rr, cc)
         self._last = None
 
-    def add_pose(self, x, y, min_step=None):
+    def add_pose(self, x: float, y: float, min_step: float | None = None) -> None:
         """Add the visible detector disk at (x, y); skipped if closer than ``min_step`` to the
         last pose added."""
         if min_step is not None and self._last is not None:
@@ -166,7 +171,7 @@ class CoverageAccumulator:
         rows, cols = self.visible(x, y)
         self.seen[rows, cols] = True
 
-    def visible(self, x, y):
+    def visible(self, x: float, y: float) -> tuple[np.ndarray, np.ndarray]:
         """Rows and columns of the cells of B^V_delta((x, y)): within delta, line of sight."""
         cvs = self.cvs
         ang = np.linspace(-math.pi, math.pi, self.n_rays, endpoint=False)
@@ -184,12 +189,12 @@ class CoverageAccumulator:
         vis = ok & (rho <= cvs.delta) & (rho <= reach[b])
         return rows[vis], cols[vis]
 
-    def fraction(self):
+    def fraction(self) -> float:
         """Covered fraction of CVS."""
         n = self.cvs.mask.sum()
         return float((self.seen & self.cvs.mask).sum() / n) if n else 1.0
 
-    def uncovered_points(self):
+    def uncovered_points(self) -> np.ndarray:
         """Centres of CVS cells not yet seen (for diagnostics and the picture)."""
         r, c = np.nonzero(self.cvs.mask & ~self.seen)
         return self.cvs.centers(r, c)

@@ -13,12 +13,20 @@ The search minimises the mismatch (a sum of distance differences, m) with Nelder
 few starts around the sensed point; the event is verified when a point with a mismatch below
 ``tol`` lies within ``radius`` of it. Reads the world file: never used by the planner.
 """
+from __future__ import annotations
+
 import math
+from collections.abc import Callable, Iterable, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.optimize import minimize
 
 from coverage_pkg.gvd import ring_minima
+
+if TYPE_CHECKING:
+    from coverage_pkg.world import World
 
 RAYS = np.linspace(0.0, 2.0 * math.pi, 2880, endpoint=False)
 
@@ -31,19 +39,21 @@ def _closest(world, q, k):
     return [d for d, _ in mins[:k]] if len(mins) >= k else None
 
 
-def cusp_mismatch(world, q, delta):
+def cusp_mismatch(world: World, q: ArrayLike, delta: float) -> float:
     """|d2 - d1| + |d1 - delta| at ``q`` (m): zero exactly at a cusp point."""
     d = _closest(world, q, 2)
     return 9.0 if d is None else abs(d[1] - d[0]) + abs(d[0] - delta)
 
 
-def meet_mismatch(world, q):
+def meet_mismatch(world: World, q: ArrayLike) -> float:
     """d3 - d1 at ``q`` (m): zero exactly at a meet point."""
     d = _closest(world, q, 3)
     return 9.0 if d is None else d[2] - d[0]
 
 
-def nearest_true(world, xy, mismatch, radius, tol=0.02):
+def nearest_true(world: World, xy: Sequence[float],
+                 mismatch: Callable[[tuple[float, float]], float], radius: float,
+                 tol: float = 0.02) -> float:
     """Distance (m) from ``xy`` to the nearest point within ``radius`` whose ``mismatch`` is
     below ``tol``; ``math.inf`` if the search finds none."""
     best = math.inf
@@ -62,7 +72,9 @@ def nearest_true(world, xy, mismatch, radius, tol=0.02):
     return best
 
 
-def check_events(world, events, delta, cusp_radius=0.15, meet_radius=0.3):
+def check_events(world: World, events: Iterable[Sequence[object]], delta: float,
+                 cusp_radius: float = 0.15, meet_radius: float = 0.3
+                 ) -> dict[str, tuple[int, int] | list[Sequence[object]]]:
     """Verify the ``cusp`` and ``meet`` events (``[t, kind, x, y, detail]`` in the world
     frame) against ``world``. Returns ``{'cusp': (verified, sensed), 'meet': (...),
     'unverified': [event, ...]}``."""

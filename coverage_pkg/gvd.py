@@ -17,15 +17,20 @@ Two views of the same object are provided:
   clearly different directions (the discrete form of ``grad d_i != grad d_j``), which is how
   the planner builds the narrow subgraphs of the hierarchical decomposition.
 """
+from __future__ import annotations
+
 import math
+from collections.abc import Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy import ndimage
 
 # ------------------------------------------------------------------ range-ring (sensor) view
 
 
-def ring_minima(ranges, angles, min_separation=math.radians(30.0)):
+def ring_minima(ranges: ArrayLike, angles: ArrayLike,
+                min_separation: float = math.radians(30.0)) -> list[tuple[float, float]]:
     """Closest obstacles seen by a range ring: local minima of range over bearing.
 
     ``ranges`` may hold REP 117 values; only finite ones count. Returns a list of
@@ -50,8 +55,9 @@ def ring_minima(ranges, angles, min_separation=math.radians(30.0)):
     return kept
 
 
-def cusp_from_ring(xy, ranges, angles, delta, min_angle=math.radians(30.0), max_shift=0.5,
-                   other_tol=0.1):
+def cusp_from_ring(xy: Sequence[float], ranges: ArrayLike, angles: ArrayLike, delta: float,
+                   min_angle: float = math.radians(30.0), max_shift: float = 0.5,
+                   other_tol: float = 0.1) -> tuple[float, float] | None:
     """The cusp point near ``xy`` from one ring sweep: the point where the two closest
     obstacles are both at ``delta`` (on the GVD, D = delta), with the obstacles locally flat.
 
@@ -79,7 +85,9 @@ def cusp_from_ring(xy, ranges, angles, delta, min_angle=math.radians(30.0), max_
     return (float(xy[0] + s[0]), float(xy[1] + s[1]))
 
 
-def meet_from_ring(xy, ranges, angles, max_shift=0.5, max_gap=math.radians(190.0)):
+def meet_from_ring(xy: Sequence[float], ranges: ArrayLike, angles: ArrayLike,
+                   max_shift: float = 0.5, max_gap: float = math.radians(190.0)
+                   ) -> tuple[float, float, float] | None:
     """The meet point near ``xy`` from one ring sweep: the point equidistant to the three
     closest obstacles, or None.
 
@@ -109,7 +117,8 @@ def meet_from_ring(xy, ranges, angles, max_shift=0.5, max_gap=math.radians(190.0
     return (float(xy[0] + s[0]), float(xy[1] + s[1]), float(s[2]))
 
 
-def gvd_order(ranges, angles, tol, min_separation=math.radians(30.0)):
+def gvd_order(ranges: ArrayLike, angles: ArrayLike, tol: float,
+              min_separation: float = math.radians(30.0)) -> int:
     """How many obstacles are equidistant (within ``tol``) and closest: the GVD order.
 
     1 means the robot is not on the GVD, 2 on a GVD edge, 3 or more at a meet point.
@@ -121,7 +130,8 @@ def gvd_order(ranges, angles, tol, min_separation=math.radians(30.0)):
     return sum(1 for d, _ in mins if d - d0 <= tol)
 
 
-def narrow_cusp_crossed(previous_min_distance, min_distance, delta):
+def narrow_cusp_crossed(previous_min_distance: float, min_distance: float,
+                        delta: float) -> bool:
     """Cusp test while tracing a narrow GVD edge (Fig. 11).
 
     In a narrow cell the minimum distance to the obstacles stays at most delta; the robot has
@@ -133,7 +143,8 @@ def narrow_cusp_crossed(previous_min_distance, min_distance, delta):
 # ------------------------------------------------------------------ grid view
 
 
-def distance_transform(obstacle, resolution):
+def distance_transform(obstacle: np.ndarray,
+                       resolution: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Distance D (m) from every cell centre to the nearest obstacle cell, and that cell.
 
     Returns ``(D, rows, cols)``; ``rows[i, j], cols[i, j]`` index the nearest obstacle cell.
@@ -146,7 +157,9 @@ def distance_transform(obstacle, resolution):
     return d, rows, cols
 
 
-def gvd_cells(free, rows, cols, min_angle=math.radians(50.0), min_distance_cells=1.5):
+def gvd_cells(free: np.ndarray, rows: np.ndarray, cols: np.ndarray,
+              min_angle: float = math.radians(50.0),
+              min_distance_cells: float = 1.5) -> np.ndarray:
     """Cells of the discrete GVD of the free cells ``free``.
 
     A free cell is on the GVD if, for one of its 4-neighbours, the nearest obstacle points of
@@ -180,7 +193,7 @@ def gvd_cells(free, rows, cols, min_angle=math.radians(50.0), min_distance_cells
     return out & free
 
 
-def prune_small(mask, min_cells):
+def prune_small(mask: np.ndarray, min_cells: int) -> np.ndarray:
     """Drop the 8-connected pieces of ``mask`` with fewer than ``min_cells`` cells."""
     lab, n = ndimage.label(mask, structure=np.ones((3, 3)))
     if n == 0:
@@ -202,7 +215,7 @@ def _clusters(mask, min_cells=1):
     return [(float(r), float(c)) for (r, c), s in zip(cen, size) if s >= min_cells]
 
 
-def meet_points(gvd, radius_cells=5):
+def meet_points(gvd: np.ndarray, radius_cells: int = 5) -> list[tuple[float, float]]:
     """Meet points of a discrete GVD: where three or more GVD edges come together.
 
     For every GVD cell the GVD is sampled on a circle of ``radius_cells`` around it; a cell
@@ -229,7 +242,8 @@ def meet_points(gvd, radius_cells=5):
     return _clusters(branch)
 
 
-def cusp_cells(gvd, distance, delta):
+def cusp_cells(gvd: np.ndarray, distance: np.ndarray,
+               delta: float) -> list[tuple[float, float]]:
     """Cusp points: GVD cells where D crosses delta (Section IV-B, ``D(x) = delta``).
 
     A GVD cell with ``D > delta`` that touches a GVD cell with ``D <= delta`` (8-neighbours)

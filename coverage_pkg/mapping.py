@@ -8,9 +8,12 @@ lapping lines, boundary pieces and GVD edges it has already followed, and a *vie
 the detector's footprint (range delta, line of sight through known free cells), which tells
 which boundary and GVD pieces still have something to show.
 """
+from __future__ import annotations
+
 import math
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy import ndimage
 
 L_FREE = -0.4       # log-odds added by a free observation
@@ -29,7 +32,8 @@ class EvidenceGrid:
 
     CHUNK = 4.0
 
-    def __init__(self, resolution=0.1, center=(0.0, 0.0), half_size=6.0):
+    def __init__(self, resolution: float = 0.1, center: tuple[float, float] = (0.0, 0.0),
+                 half_size: float = 6.0) -> None:
         self.res = float(resolution)
         n = int(math.ceil(2 * half_size / self.res))
         self.origin = np.array([center[0] - half_size, center[1] - half_size], dtype=float)
@@ -41,10 +45,10 @@ class EvidenceGrid:
         self.version = 0                              # bumped when the grid changes shape
 
     @property
-    def shape(self):
+    def shape(self) -> tuple[int, int]:
         return self.logodds.shape
 
-    def ensure(self, xmin, ymin, xmax, ymax):
+    def ensure(self, xmin: float, ymin: float, xmax: float, ymax: float) -> None:
         """Grow the grid so that the given box lies inside it."""
         ny, nx = self.shape
         x1, y1 = self.origin + np.array([nx, ny]) * self.res
@@ -69,17 +73,18 @@ class EvidenceGrid:
         self.origin = self.origin - np.array([pad[0], pad[1]]) * self.res
         self.version += 1
 
-    def cells(self, xy):
+    def cells(self, xy: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """(rows, cols) integer indices of points ``xy`` (n, 2)."""
         ij = np.floor((np.asarray(xy) - self.origin) / self.res).astype(np.int64)
         return ij[:, 1], ij[:, 0]
 
-    def center(self, rows, cols):
+    def center(self, rows: ArrayLike, cols: ArrayLike) -> np.ndarray:
         """World (x, y) of cell centres."""
         return np.stack([self.origin[0] + (np.asarray(cols) + 0.5) * self.res,
                          self.origin[1] + (np.asarray(rows) + 0.5) * self.res], axis=-1)
 
-    def integrate(self, free_xy, occ_xy, edge_xy=None):
+    def integrate(self, free_xy: ArrayLike, occ_xy: ArrayLike,
+                  edge_xy: ArrayLike | None = None) -> None:
         """Add one sweep's evidence; a cell counts once per sweep, echoes win over free.
 
         ``edge_xy`` are the outer parts of the echo arcs (see
@@ -121,7 +126,7 @@ class EvidenceGrid:
             flat[edge] = np.minimum(flat[edge] + L_OCC, L_MAX)
             seen[edge] = True
 
-    def mark_trace(self, x, y, radius):
+    def mark_trace(self, x: float, y: float, radius: float) -> None:
         """Mark the cells within ``radius`` of the robot centre as traced, and the cell of
         the centre itself as visited."""
         self.ensure(x - radius - 1, y - radius - 1, x + radius + 1, y + radius + 1)
@@ -133,7 +138,7 @@ class EvidenceGrid:
         inside = np.hypot(cen[..., 0] - x, cen[..., 1] - y) <= radius
         self.trace[(r0[0] + rr)[inside], (c0[0] + cc)[inside]] = True
 
-    def mark_viewed(self, x, y, radius):
+    def mark_viewed(self, x: float, y: float, radius: float) -> None:
         """Mark the cells the detector of range ``radius`` sees from (x, y): along rays through
         known free cells, up to and including the first cell that is not known free. Only
         free cells sampled within ``radius - res`` count, so a cell marked viewed is within
@@ -162,7 +167,8 @@ class EvidenceGrid:
         near = np.hypot(cen[:, 0] - x, cen[:, 1] - y) <= wall_reach
         self.viewed[wr[near], wc[near]] = True
 
-    def rejudge_viewed(self, poses, radius, rows, cols, k=12):
+    def rejudge_viewed(self, poses: ArrayLike, radius: float, rows: np.ndarray, cols: np.ndarray,
+                       k: int = 12) -> int:
         """Mark viewed the candidate cells ``rows, cols`` (not yet viewed) that one
         of the past detector ``poses`` (n, 2) sees on **today's** map: centre within
         ``radius - res`` and every sample of the segment on known free cells.
@@ -198,13 +204,13 @@ class EvidenceGrid:
         self.viewed[rows[hit], cols[hit]] = True
         return int(len(hit))
 
-    def occupied(self):
+    def occupied(self) -> np.ndarray:
         return self.logodds > T_OCC
 
-    def free(self):
+    def free(self) -> np.ndarray:
         return self.logodds < T_FREE
 
-    def known_bbox(self, margin_cells=3):
+    def known_bbox(self, margin_cells: int = 3) -> tuple[slice, slice]:
         """Row/column slice of the part of the grid that has been observed (plus a margin)."""
         rows = np.flatnonzero(self.seen.any(axis=1))
         cols = np.flatnonzero(self.seen.any(axis=0))
@@ -215,7 +221,8 @@ class EvidenceGrid:
                 slice(max(cols[0] - margin_cells, 0), min(cols[-1] + margin_cells + 1, nx)))
 
 
-def drop_speckles(unseen, frontier, resolution, min_area, budget=np.inf):
+def drop_speckles(unseen: np.ndarray, frontier: np.ndarray, resolution: float, min_area: float,
+                  budget: float = np.inf) -> np.ndarray:
     """``unseen`` without its speckles: 8-connected pockets smaller than ``min_area`` (m^2)
     that do not come within two cells of the ``frontier``, smallest first, as long as their
     total area stays within ``budget`` (m^2).

@@ -14,15 +14,20 @@ when the direction to the closest obstacle is parallel to ``grad h`` (the +/-x a
 column and finds the critical points as the columns where the number or adjacency of slice
 intervals changes, :func:`reeb_decomposition`.
 """
+from __future__ import annotations
+
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from coverage_pkg.gvd import ring_minima
 
 
-def critical_from_ring(ranges, angles, yaw, tol=math.radians(8.0)):
+def critical_from_ring(ranges: ArrayLike, angles: ArrayLike, yaw: float,
+                       tol: float = math.radians(8.0)) -> int:
     """Critical point test from a range ring, for the slice function h = x.
 
     At a critical point of ``h`` restricted to the boundary, the boundary normal (the direction
@@ -41,7 +46,7 @@ def critical_from_ring(ranges, angles, yaw, tol=math.radians(8.0)):
     return 0
 
 
-def slice_intervals(column):
+def slice_intervals(column: ArrayLike) -> list[tuple[int, int]]:
     """Maximal runs of True in a 1-D boolean array: list of (start, end) inclusive."""
     col = np.asarray(column, dtype=np.int8)
     d = np.diff(np.concatenate([[0], col, [0]]))
@@ -63,7 +68,8 @@ class CriticalPoint:
     hi: float = math.nan    # (split, merge) or the interval that opens or closes (birth, death)
 
 
-def reeb_decomposition(mask):
+def reeb_decomposition(mask: np.ndarray
+                       ) -> tuple[np.ndarray, list[CriticalPoint], list[tuple[int, int, int]]]:
     """Boustrophedon (Morse, h = x) decomposition of a boolean region ``mask[row, col]``.
 
     Sweeps the slice column by column. Interval ``b`` of column ``j`` continues the cell of
@@ -177,7 +183,8 @@ def _gap_persists(mask, p, span):
     return True
 
 
-def sensed_morse_cells(mask, sensed, col_tol, row_tol, min_span=2):
+def sensed_morse_cells(mask: np.ndarray, sensed: Sequence[tuple[float, float, int]],
+                       col_tol: float, row_tol: float, min_span: int = 2) -> MorseCells:
     """Morse cells of ``mask`` whose boundaries are the slices through **sensed** critical
     points, as in the incremental construction of Section II / Fig. 4.
 
@@ -258,7 +265,7 @@ def sensed_morse_cells(mask, sensed, col_tol, row_tol, min_span=2):
     return MorseCells(merged, edges, confirmed, ignored)
 
 
-def cell_boundaries(labels):
+def cell_boundaries(labels: np.ndarray) -> np.ndarray:
     """Cells where the slice direction (x) passes from one Morse cell to another: the slices
     through the sensed critical points, for pictures and markers."""
     out = np.zeros(labels.shape, dtype=bool)
@@ -266,7 +273,8 @@ def cell_boundaries(labels):
     return out
 
 
-def lap_columns(nx, origin_x, resolution, x_ref, spacing):
+def lap_columns(nx: int, origin_x: float, resolution: float, x_ref: float,
+                spacing: float) -> np.ndarray:
     """Boolean per grid column: True on the lapping slices ``x = x_ref + k * spacing``.
 
     The slices are ``2 * delta`` apart so that the detector disks swept along two neighbouring
@@ -279,7 +287,7 @@ def lap_columns(nx, origin_x, resolution, x_ref, spacing):
     return (d >= -0.5 * resolution - 1e-9) & (d < 0.5 * resolution - 1e-9)
 
 
-def boundary_cells(region):
+def boundary_cells(region: np.ndarray) -> np.ndarray:
     """Cells of ``region`` with a 4-neighbour outside it: the curve followed by boundary
     following (for the vast region, the contour ``D = delta``)."""
     p = np.pad(region, 1, constant_values=False)

@@ -14,12 +14,28 @@ closer than the echo is free (the echo is the *first* one) and the arc at the ec
 an obstacle somewhere. Free evidence is reliable, arc evidence is smeared over the beam width;
 a log-odds grid (:mod:`coverage_pkg.mapping`) fuses both over many poses.
 """
+from __future__ import annotations
+
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from paramotion.errors import UserError
+
+if TYPE_CHECKING:
+    from coverage_pkg.world import World
+
+
+class _Quaternion(Protocol):
+    """A quaternion with fields x, y, z, w (e.g. geometry_msgs/Quaternion)."""
+
+    x: float
+    y: float
+    z: float
+    w: float
 
 
 @dataclass
@@ -33,11 +49,11 @@ class SonarRing:
     noise_std: float = 0.01        # m, Gaussian range noise
     rays_per_beam: int = 7         # rays cast per cone by the simulator
 
-    def mount_angles(self):
+    def mount_angles(self) -> np.ndarray:
         """Transducer axis angles in the robot frame (rad), counter-clockwise from +x."""
         return 2.0 * math.pi * np.arange(self.count) / self.count
 
-    def validate(self, delta=None):
+    def validate(self, delta: float | None = None) -> None:
         """Raise UserError if the ring is inconsistent, or cannot see as far as ``delta``."""
         if self.count < 3:
             raise UserError(f'sonar count {self.count} must be at least 3')
@@ -52,7 +68,8 @@ class SonarRing:
                             f'range delta {delta:g} m')
 
 
-def simulate_ring(world, pose, ring, rng=None):
+def simulate_ring(world: World, pose: ArrayLike, ring: SonarRing,
+                  rng: np.random.Generator | None = None) -> np.ndarray:
     """Readings of every transducer of ``ring`` at ``pose`` = (x, y, yaw) in ``world``.
 
     Each cone is sampled by ``rays_per_beam`` exact ray casts; the reading is the nearest hit
@@ -75,12 +92,12 @@ def simulate_ring(world, pose, ring, rng=None):
     return out
 
 
-def yaw_of(q):
+def yaw_of(q: _Quaternion) -> float:
     """Yaw (rad) of a quaternion with fields x, y, z, w (e.g. geometry_msgs/Quaternion)."""
     return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
 
 
-def reading_kind(value, min_range, max_range):
+def reading_kind(value: float | None, min_range: float, max_range: float) -> str:
     """Classify one REP 117 reading: 'echo', 'no_echo', 'too_close' or 'invalid'."""
     if value is None or math.isnan(value):
         return 'invalid'
@@ -93,8 +110,11 @@ def reading_kind(value, min_range, max_range):
     return 'invalid'
 
 
-def sweep_evidence(pose, ranges, mount_angles, beam_width, min_range, max_range, resolution,
-                   noise_std=0.01, arc_fraction=0.35, edges=False):
+def sweep_evidence(pose: ArrayLike, ranges: ArrayLike, mount_angles: ArrayLike,
+                   beam_width: float, min_range: float, max_range: float, resolution: float,
+                   noise_std: float = 0.01, arc_fraction: float = 0.35, edges: bool = False
+                   ) -> (tuple[np.ndarray, np.ndarray, int]
+                         | tuple[np.ndarray, np.ndarray, np.ndarray, int]):
     """Inverse sonar model for one sweep of the ring.
 
     Returns ``(free_xy, occ_xy, valid)``: sample points of cells that the sweep shows free and

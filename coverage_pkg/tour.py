@@ -5,7 +5,10 @@ chunks, the geodesic distance between chunks is computed on a coarse copy of the
 grid, and an open tour starting at the robot is built by nearest neighbour and improved by
 2-opt. Plain numpy/scipy, no ROS.
 """
+from __future__ import annotations
+
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy import ndimage
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
@@ -13,7 +16,7 @@ from scipy.sparse.csgraph import dijkstra
 COARSE_CELL = 0.4   # m, cell of the coarse grid the chunk distances are computed on
 
 
-def chunk_cells(mask, size):
+def chunk_cells(mask: np.ndarray, size: int) -> list[np.ndarray]:
     """Split the True cells of ``mask`` into chunks: squares of ``size`` cells, each split
     again into its 8-connected parts. Returns a list of (n, 2) arrays of (row, col)."""
     lab, n = ndimage.label(mask, structure=np.ones((3, 3)))
@@ -30,7 +33,7 @@ def chunk_cells(mask, size):
     return [np.stack([r, c], axis=1) for r, c in zip(np.split(rr, cuts), np.split(cc, cuts))]
 
 
-def coarse_distances(cost, cells, factor):
+def coarse_distances(cost: np.ndarray, cells: ArrayLike, factor: int) -> np.ndarray:
     """Geodesic distances (in fine cells x cost) between ``cells`` on the cost grid reduced by
     ``factor``. A coarse cell is passable if any of its fine cells is (its cost is the
     smallest); two neighbouring coarse cells are joined only where passable fine cells touch
@@ -77,7 +80,7 @@ def coarse_distances(cost, cells, factor):
     return out
 
 
-def open_tour(dist, end=None):
+def open_tour(dist: np.ndarray, end: int | None = None) -> list[int]:
     """Order of the nodes of an open tour starting at node 0 and visiting all, that is short
     under ``dist``; it ends at node ``end`` if given, else anywhere. Nearest neighbour, then
     2-opt on the open path."""

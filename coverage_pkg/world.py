@@ -8,15 +8,27 @@ only knows what its sensors tell it, Section V of Acar, Choset and Lee).
 Bad input raises :class:`paramotion.errors.UserError` with one line naming the file and the
 problem, so that a scenario never starts half-way on a broken world.
 """
+from __future__ import annotations
+
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Protocol
 
 import numpy as np
+from numpy.typing import ArrayLike
 from shapely.geometry import Point, Polygon
 from shapely.validation import explain_validity
 
 from paramotion.errors import UserError
 from paramotion.jsonfile import load_json_object
+
+
+class _NamedNode(Protocol):
+    """What :func:`load_world_param` reads of a node: its name (for the error line)."""
+
+    def get_name(self) -> str: ...
 
 
 @dataclass
@@ -41,36 +53,37 @@ class World:
         self.segments = np.vstack(segs)
 
     @property
-    def bounds(self):
+    def bounds(self) -> tuple[float, float, float, float]:
         """(xmin, ymin, xmax, ymax) of the boundary."""
         return self.free.bounds
 
-    def clearance(self, xy):
+    def clearance(self, xy: ArrayLike) -> float:
         """Distance D(x) from a point to the nearest wall or obstacle (0 outside free space)."""
         p = Point(float(xy[0]), float(xy[1]))
         if not self.free.contains(p):
             return 0.0
         return float(self.free.boundary.distance(p))
 
-    def contains(self, xy):
+    def contains(self, xy: ArrayLike) -> bool:
         """True if the point lies in the free workspace FWS."""
         return bool(self.free.contains(Point(float(xy[0]), float(xy[1]))))
 
-    def raycast(self, origin, angles, max_range):
+    def raycast(self, origin: ArrayLike, angles: ArrayLike, max_range: float) -> np.ndarray:
         """Distance along each ray from ``origin`` to the first wall, capped at ``max_range``.
 
         Exact ray/segment intersection, vectorised over rays and segments.
         """
         return raycast_segments(self.segments, origin, angles, max_range)
 
-    def to_json(self):
+    def to_json(self) -> dict[str, object]:
         """The world as the JSON-compatible dict it was loaded from."""
         return {'name': self.name, 'boundary': self.boundary.tolist(),
                 'obstacles': [o.tolist() for o in self.obstacles],
                 'start': self.start.tolist()}
 
 
-def raycast_segments(segments, origin, angles, max_range):
+def raycast_segments(segments: np.ndarray, origin: ArrayLike, angles: ArrayLike,
+                     max_range: float) -> np.ndarray:
     """Distance from ``origin`` along each direction in ``angles`` to the nearest segment.
 
     ``segments`` is (k, 4) rows ``x1, y1, x2, y2``. Returns an array shaped like ``angles``;
@@ -119,7 +132,8 @@ def _polygon(points, what, source):
     return arr
 
 
-def world_from_dict(data, source='<memory>', radius=None):
+def world_from_dict(data: Mapping[str, object], source: str = '<memory>',
+                    radius: float | None = None) -> World:
     """Validate a world dict (see module docstring); ``radius`` checks start clearance."""
     if not isinstance(data, dict):
         raise UserError(f'{source}: top level must be a JSON object')
@@ -161,13 +175,14 @@ def world_from_dict(data, source='<memory>', radius=None):
     return world
 
 
-def load_world(path, radius=None):
+def load_world(path: str | Path, radius: float | None = None) -> World:
     """Load and validate a world JSON file; raise UserError with one line if it is bad."""
     data = load_json_object(path, 'world file')
     return world_from_dict(data, source=str(path), radius=radius)
 
 
-def load_world_param(node, path, radius=None):
+def load_world_param(node: _NamedNode, path: str | Path,
+                     radius: float | None = None) -> World:
     """Load the world named by a node's ``world`` parameter; a bad file is a bad parameter.
 
     Raises :class:`paramotion.errors.ParameterError` (one line, naming node and parameter), so
@@ -183,7 +198,8 @@ def load_world_param(node, path, radius=None):
         raise ParameterError(f"{node.get_name()}: parameter 'world': {exc}") from None
 
 
-def rasterize(world, resolution, margin=0.0):
+def rasterize(world: World, resolution: float,
+              margin: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Rasterise the free workspace on a grid of square cells.
 
     Returns ``(free_mask, origin)`` where ``free_mask[i, j]`` is True if the centre of cell
@@ -206,7 +222,8 @@ def rasterize(world, resolution, margin=0.0):
     return mask.reshape(ny, nx), np.array([xmin, ymin])
 
 
-def random_world(seed, size=(16.0, 12.0), n_obstacles=4, radius=0.25):
+def random_world(seed: int, size: tuple[float, float] = (16.0, 12.0), n_obstacles: int = 4,
+                 radius: float = 0.25) -> World:
     """A random, valid world (rectangular room with a notch and convex obstacles).
 
     Used by the tests to check the planner on worlds it has never seen.
