@@ -258,6 +258,7 @@ def write_report(out_dir: Path, quick: bool = False) -> list:
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     start = datetime.datetime.now(datetime.timezone.utc)
+    flex = error_table(quick)
     res = run_cases(_cases(quick))
     sweep_png = out_dir / 'fast_latency_sweep.png'
     coupled_png = out_dir / 'fast_coupled.png'
@@ -266,7 +267,6 @@ def write_report(out_dir: Path, quick: bool = False) -> list:
     sweep, limits = _sweep_rows(res)
     spec, held = _spec_rows(res)
     coupled, ratios = _coupled_rows(res)
-    flex = error_table(quick)
     payload, base = coupled_masses()
     raw_g = load_config(COUPLED).raw['gough_stewart']
     wall = (datetime.datetime.now(datetime.timezone.utc) - start).total_seconds()
