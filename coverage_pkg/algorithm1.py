@@ -121,6 +121,7 @@ class Branch:
     opened_by: int = None
     end: str = None                 # cusp, dead_end, meet, given_up (None: untraced)
     end_xy: tuple = None            # where the trace ended
+    end_heading: tuple = None       # the direction it was traced in when it ended
 
 
 @dataclass
@@ -261,6 +262,7 @@ class PaperPlanner:
         self._hist, self.stuck_count, self.given_up = [], 0, []
         self.update_times = []
         self.last = {}                             # no decomposed map (the node's markers)
+        self._cusp_dir = None                      # bearing into the narrow cell, this cusp
 
     # ------------------------------------------------------------------ inputs
 
@@ -325,7 +327,9 @@ class PaperPlanner:
                 abs(math.remainder(bearing - last, 2 * math.pi)) > math.radians(45):
             xy = gvdmod.cusp_from_ring(self.pose[:2], self.ranges, self.angles, self.det)
         if xy is not None:
+            self._cusp_dir = self._gvd_direction()
             self._on_event(t, 'cusp', xy, 'D = delta where two closest obstacles meet')
+            self._cusp_dir = None
 
     def _sense_meet(self, t):
         """Meet point (Section III): three closest obstacles equidistant, two sweeps agreeing."""
@@ -407,20 +411,39 @@ class PaperPlanner:
         ended it, or the branch's last point, within ``same_event``), if any."""
         near = self.cfg.same_event
         for v, w, c in self.edges:
-            if math.dist(c, xy) < near and self._created_from(v, w):
+            if math.dist(c, xy) < near and self._created_from(v, w, self._cusp_dir):
                 return self.nodes[w]
         for m in self.nodes:
-            if m.kind == 'narrow' and any(b.end == 'cusp' and b.end_xy is not None and
-                                          math.dist(b.end_xy, xy) < near for b in m.branches):
+            if m.kind == 'narrow' and any(self._arrived(b, xy, near, self._cusp_dir)
+                                          for b in m.branches):
                 return m
         return None
 
-    def _created_from(self, v, w):
+    def _gvd_direction(self):
+        """Bearing from a cusp into its narrow cell: between its two closest obstacles."""
+        if len(self.mins) < 2:
+            return None
+        (_, a1), (_, a2) = self.mins[:2]
+        v = (math.cos(a1) + math.cos(a2), math.sin(a1) + math.sin(a2))
+        return math.atan2(v[1], v[0]) if math.hypot(*v) > 0.2 else None
+
+    @staticmethod
+    def _arrived(b, xy, near, into):
+        """Branch ``b`` ended at the cusp ``xy`` on the same GVD edge: within ``near`` of it,
+        traced out of the narrow cell opposite to the cusp's bearing ``into`` it (the cusps
+        of a small vast cell lie within a step of one another, each on its own edge)."""
+        if b.end != 'cusp' or b.end_xy is None or math.dist(b.end_xy, xy) >= near:
+            return False
+        if into is None or b.end_heading is None:
+            return True
+        out = math.atan2(b.end_heading[1], b.end_heading[0])
+        return abs(math.remainder(out - into - math.pi, 2 * math.pi)) < math.radians(60)
+
+    def _created_from(self, v, w, into=None):
         """Vast node ``v`` was created while narrow node ``w`` was traced (its cusp ended a
-        GVD branch of ``w``)."""
+        GVD branch of ``w``, on the edge that leaves the cusp along ``into``)."""
         ev = self.nodes[v].created_by
-        return ev is not None and any(b.end == 'cusp' and b.end_xy is not None and
-                                      math.dist(b.end_xy, self.events[ev][2:4]) < 1.0
+        return ev is not None and any(self._arrived(b, self.events[ev][2:4], 1.0, into)
                                       for b in self.nodes[w].branches)
 
     def _join_known_cusp(self, xy):
@@ -869,6 +892,7 @@ class PaperPlanner:
         br = self.task.get('branch')
         if br is not None:
             br.end, br.end_xy = how, (float(self.pose[0]), float(self.pose[1]))
+            br.end_heading = self.task.get('heading')
             self._record(self.t_sweep, 'branch_end', self.pose, f'GVD branch ends: {how}')
         self.task, self.mode = {}, None
         return None
