@@ -1,9 +1,23 @@
 """The coverage picture (like Fig. 13 of Acar, Choset and Lee): world, path, cells and graph."""
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import TYPE_CHECKING
+
 import numpy as np
+from numpy.typing import ArrayLike
+
+if TYPE_CHECKING:
+    from coverage_pkg.algorithm1 import PaperPlanner
+    from coverage_pkg.planner import CoveragePlanner
+    from coverage_pkg.world import World
 
 
-def render_coverage(path_png, world, path, graph_dict=None, layers=None, uncovered=None,
-                    title=''):
+def render_coverage(path_png: str | Path, world: World, path: ArrayLike,
+                    graph_dict: Mapping[str, object] | None = None,
+                    layers: Mapping[str, object] | None = None,
+                    uncovered: np.ndarray | None = None, title: str = '') -> None:
     """Draw the world, the robot path, the sensed vast/narrow cells, the GVD, critical, cusp
     and meet points and the hierarchical graph, and save to ``path_png``.
 
@@ -89,7 +103,8 @@ def _where(node):
     return tuple(node.get('label_point', node['centroid'])[:2])
 
 
-def planner_layers(planner):
+def planner_layers(planner: CoveragePlanner | PaperPlanner
+                   ) -> dict[str, np.ndarray | tuple[float, float, float, float]] | None:
     """The planner's last decomposition as picture layers (see :func:`render_coverage`)."""
     d = planner.last
     if not d:

@@ -12,10 +12,17 @@ The planner rebuilds the components from its growing sensor map; this class keep
 start or a cusp point; components that grow together merge their nodes), the covered flags of
 Algorithm 1, the cusp edges, and answers ``FindUncoveredNode`` and paths through the graph.
 """
+from __future__ import annotations
+
 from collections import deque
+from collections.abc import Callable, Collection, Iterable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import ArrayLike
+
+XY = tuple[float, float]
+"""A point (x, y) in the map frame, metres."""
 
 
 @dataclass
@@ -62,17 +69,20 @@ class HierarchicalGraph:
         self.edges = {}            # (vast_id, narrow_id) -> {'sensed', 'predicted', 'shared'}
         self._next = 0
 
-    def create_node(self, kind, anchor):
+    def create_node(self, kind: str, anchor: Sequence[float]) -> GraphNode:
         """CreateNode of Algorithm 1: a new uncovered node of the given kind."""
         node = GraphNode(self._next, kind, (float(anchor[0]), float(anchor[1])))
         self.nodes[node.id] = node
         self._next += 1
         return node
 
-    def alive(self, kind=None):
+    def alive(self, kind: str | None = None) -> list[GraphNode]:
         return [n for n in self.nodes.values() if n.alive and (kind is None or n.kind == kind)]
 
-    def update(self, kind, labels, to_cell, to_world, resolution, seeds=(), window=3):
+    def update(self, kind: str, labels: np.ndarray,
+               to_cell: Callable[[float, float], tuple[int, int] | None],
+               to_world: Callable[[np.ndarray, np.ndarray], np.ndarray], resolution: float,
+               seeds: Iterable[Sequence[float]] = (), window: int = 3) -> dict[int, int]:
         """Match the components ``labels`` (0 = none) of one kind to graph nodes.
 
         ``to_cell(x, y) -> (row, col) or None`` and ``to_world(rows, cols) -> (n, 2)`` convert
@@ -134,7 +144,9 @@ class HierarchicalGraph:
                 key = (new if v == old else v, new if n == old else n)
                 self.link(key[0], key[1], edge['sensed'], edge['predicted'], edge['shared'])
 
-    def link(self, vast_id, narrow_id, sensed=(), predicted=(), shared=None, merge_radius=0.5):
+    def link(self, vast_id: int, narrow_id: int, sensed: Iterable[Sequence[float]] = (),
+             predicted: Iterable[Sequence[float]] = (), shared: Sequence[float] | None = None,
+             merge_radius: float = 0.5) -> dict[str, list[XY] | XY | None]:
         """Edge between a vast node and a narrow node whose cells touch, with the cusp points
         between them: ``sensed`` by the ring (events), ``predicted`` on the GVD at D = delta
         from memory (not yet sensed), and a point of the shared boundary (``shared``)."""
@@ -149,18 +161,19 @@ class HierarchicalGraph:
             edge['shared'] = (float(shared[0]), float(shared[1]))
         return edge
 
-    def add_cusp(self, vast_id, narrow_id, cusps):
+    def add_cusp(self, vast_id: int, narrow_id: int,
+                 cusps: tuple[float, float] | Iterable[Sequence[float]]) -> None:
         """Record sensed cusp point(s) linking a vast node and a narrow node."""
         if isinstance(cusps, tuple):
             cusps = [cusps]
         self.link(vast_id, narrow_id, sensed=cusps)
 
-    def cusp_points(self, vast_id, narrow_id):
+    def cusp_points(self, vast_id: int, narrow_id: int) -> list[XY]:
         """All cusp points of an edge (sensed first)."""
         e = self.edges.get((vast_id, narrow_id))
         return [] if e is None else e['sensed'] + e['predicted']
 
-    def crossing(self, a, b, here):
+    def crossing(self, a: int, b: int, here: ArrayLike) -> XY | None:
         """Where the route crosses from node ``a`` to node ``b``: the cusp point of their edge
         nearest to ``here`` (or a shared boundary point when the edge has no cusp)."""
         e = self.edges.get((a, b)) or self.edges.get((b, a))
@@ -171,7 +184,7 @@ class HierarchicalGraph:
             return e['shared']
         return min(pts, key=lambda c: np.hypot(c[0] - here[0], c[1] - here[1]))
 
-    def route_crossings(self, hops, here):
+    def route_crossings(self, hops: Sequence[int], here: Sequence[float]) -> list[XY]:
         """The crossing points of a graph route ``hops`` (node ids): one cusp point (or shared
         boundary point) per edge, chosen together so that the straight-line length
         ``here -> c1 -> c2 -> ...`` is least (dynamic programming over the edges)."""
@@ -192,14 +205,14 @@ class HierarchicalGraph:
                          for c, q in best), key=lambda v: v[0]) for p in pts]
         return min(best, key=lambda v: v[0])[1]
 
-    def resolve(self, node_id):
+    def resolve(self, node_id: int) -> int | None:
         """The live node standing for ``node_id`` (following merges), or None."""
         node = self.nodes.get(node_id)
         while node is not None and not node.alive and node.merged_into >= 0:
             node = self.nodes[node.merged_into]
         return node.id if node is not None and node.alive else None
 
-    def neighbours(self, node_id):
+    def neighbours(self, node_id: int) -> set[int]:
         out = set()
         for (v, n) in self.edges:
             if v == node_id and self.nodes[n].alive:
@@ -208,7 +221,7 @@ class HierarchicalGraph:
                 out.add(v)
         return out
 
-    def graph_path(self, start, goal):
+    def graph_path(self, start: int, goal: int) -> list[int]:
         """Shortest path (fewest cusp crossings) between two nodes; [] if not connected."""
         if start == goal:
             return [start]
@@ -227,7 +240,9 @@ class HierarchicalGraph:
                     q.append(v)
         return []
 
-    def find_uncovered_node(self, current, distance=None, skip=()):
+    def find_uncovered_node(self, current: int | None,
+                            distance: Callable[[GraphNode], float] | None = None,
+                            skip: Collection[int] = ()) -> GraphNode | None:
         """FindUncoveredNode of Algorithm 1: the uncovered node to visit next, or None.
 
         Prefers the node fewest graph edges away from ``current``; ties (and nodes the graph
@@ -244,7 +259,7 @@ class HierarchicalGraph:
             return (hops, distance(n) if distance else 0.0, n.id)
         return min(cands, key=key)
 
-    def to_dict(self):
+    def to_dict(self) -> dict[str, list[dict[str, object]]]:
         """JSON-friendly snapshot: nodes (type vast/narrow) and edges with their cusp points."""
         return {
             'nodes': [{'id': n.id, 'type': n.kind, 'kind': n.kind, 'covered': n.covered,

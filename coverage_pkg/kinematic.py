@@ -6,20 +6,34 @@ the body-frame velocity command; a move that would bring the centre within r of 
 refused (the robot stops there, as against a wall), so a planner error shows up as a stuck
 robot rather than as a robot passing through walls.
 """
+from __future__ import annotations
+
 import math
 import time
+from collections.abc import Callable, Iterable
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import shapely
 
-from coverage_pkg.algorithm1 import PaperConfig, PaperPlanner
+from coverage_pkg.algorithm1 import Command, PaperConfig, PaperPlanner
 from coverage_pkg.cvs import CoverableSet, CoverageAccumulator
 from coverage_pkg.planner import CoveragePlanner, PlannerConfig
 from coverage_pkg.sonar import SonarRing, simulate_ring
 
+if TYPE_CHECKING:
+    from coverage_pkg.world import World
 
-def run_kinematic(world, config=None, ring=None, dt=0.05, sweep_period=0.1, max_time=3000.0,
-                  seed=0, dropout=None, corrupt=None, cvs_resolution=0.05, on_step=None):
+
+def run_kinematic(world: World, config: PaperConfig | PlannerConfig | None = None,
+                  ring: SonarRing | None = None, dt: float = 0.05, sweep_period: float = 0.1,
+                  max_time: float = 3000.0, seed: int = 0,
+                  dropout: Callable[[float], bool] | None = None,
+                  corrupt: Callable[[float, np.ndarray], np.ndarray] | None = None,
+                  cvs_resolution: float = 0.05,
+                  on_step: (Callable[[float, CoveragePlanner | PaperPlanner, Command], object]
+                            | None) = None) -> dict[str, object]:
     """Run coverage on ``world`` until the planner is done/stuck or ``max_time`` sim seconds.
 
     ``config`` is a :class:`PaperConfig` (the paper planner, :mod:`coverage_pkg.algorithm1`)
@@ -86,8 +100,10 @@ def run_kinematic(world, config=None, ring=None, dt=0.05, sweep_period=0.1, max_
             'accumulator': acc, 'update_times': update_times}
 
 
-def ratio_report(paths, config=None, baseline=False, oracle=False, max_time=3000.0, out=print,
-                 events=False):
+def ratio_report(paths: Iterable[str | Path], config: PaperConfig | PlannerConfig | None = None,
+                 baseline: bool = False, oracle: bool = False, max_time: float = 3000.0,
+                 out: Callable[[str], object] = print,
+                 events: bool = False) -> list[dict[str, object]]:
     """Cover every world file in ``paths`` in the ROS-free loop and print, per world, the
     covered fraction of CVS, the path, the lower bound |CVS|/(2 delta) and their ratio (and,
     with ``baseline``, the robot-size baseline's path and the extended/baseline ratio; with

@@ -22,12 +22,18 @@ Greedy set cover and local tour search give an *upper* bound on the shortest suc
 the optimum (the watchman route problem with limited range is NP-hard). The oracle reads the
 world; the planner never uses it.
 """
+from __future__ import annotations
+
 import heapq
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from coverage_pkg.cvs import CoverableSet, CoverageAccumulator
+
+if TYPE_CHECKING:
+    from coverage_pkg.world import World
 
 
 def _geodesic(passable, sources):
@@ -114,8 +120,8 @@ def _improve_tour(order, dist):
 class OracleRoute:
     """Offline route through the true world that sees ``target`` of CVS (see module doc)."""
 
-    def __init__(self, world, radius, delta, target=0.998, clearance_margin=0.05,
-                 pose_step=0.2):
+    def __init__(self, world: World, radius: float, delta: float, target: float = 0.998,
+                 clearance_margin: float = 0.05, pose_step: float = 0.2) -> None:
         self.world = world
         self.cvs = CoverableSet(world, radius, delta, 0.05)
         self.acc = CoverageAccumulator(self.cvs)
@@ -196,7 +202,7 @@ class OracleRoute:
             covered[self._leg(a, b)[0]] = True
         return int(covered.sum())
 
-    def plan(self, view_step=0.25):
+    def plan(self, view_step: float = 0.25) -> dict[str, object]:
         """Plan the route; returns a dict with the path (map frame), its length, the covered
         fraction of CVS measured along it and the viewpoints kept."""
         cvs = self.cvs
@@ -265,6 +271,7 @@ class OracleRoute:
                                for i in order[1:]]}
 
 
-def oracle_route(world, radius=0.25, delta=2.0, target=0.998, view_step=0.25):
+def oracle_route(world: World, radius: float = 0.25, delta: float = 2.0, target: float = 0.998,
+                 view_step: float = 0.25) -> dict[str, object]:
     """Plan the full-knowledge route of ``world`` (see :class:`OracleRoute`)."""
     return OracleRoute(world, radius, delta, target=target).plan(view_step=view_step)

@@ -32,10 +32,13 @@ Faults: NaN readings are ignored, +inf clears the cone up to max range, -inf add
 (REP 117). Without a sweep for more than ``sonar_timeout`` s of sim time the robot is stopped
 (``waiting_for_sonar``) and resumes when sweeps return.
 """
+from __future__ import annotations
+
 import math
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy import ndimage
 
 from coverage_pkg import gvd as gvdmod
@@ -96,11 +99,11 @@ class PlannerConfig:
     leave_far: float = 4.0             # m, a narrow node whose work left is this far ...
     leave_near: float = 2.0            # ... first covers an uncovered vast neighbour this near
 
-    def detector_range(self):
+    def detector_range(self) -> float:
         """Range of the detector used for coverage: delta, or r for the robot-size baseline."""
         return self.radius if self.detector == 'robot' else self.delta
 
-    def validate(self, sonar_max_range=None):
+    def validate(self, sonar_max_range: float | None = None) -> None:
         """Raise UserError (one line) for inconsistent parameters."""
         if self.detector not in ('extended', 'robot'):
             raise UserError(f'detector "{self.detector}" must be "extended" or "robot"')
@@ -136,7 +139,8 @@ class CoveragePlanner:
     """The grid planner (ours, frontier-driven). Feed :meth:`on_odometry` and :meth:`on_sweep`;
     call :meth:`update`."""
 
-    def __init__(self, config, mount_angles, beam_width, min_range, max_range, noise_std=0.01):
+    def __init__(self, config: PlannerConfig, mount_angles: ArrayLike, beam_width: float,
+                 min_range: float, max_range: float, noise_std: float = 0.01) -> None:
         config.validate(max_range)
         self.cfg = config
         self.mount = np.asarray(mount_angles, dtype=float)
@@ -186,7 +190,7 @@ class CoveragePlanner:
 
     # ------------------------------------------------------------------ inputs
 
-    def on_odometry(self, t, x, y, yaw):
+    def on_odometry(self, t: float, x: float, y: float, yaw: float) -> None:
         """Robot pose in the odom frame at sim time t."""
         if not all(math.isfinite(v) for v in (t, x, y, yaw)):
             return
@@ -197,7 +201,7 @@ class CoveragePlanner:
             self.x_ref = float(x)
         self.grid.mark_trace(x, y, self.cfg.trace_tolerance)
 
-    def on_sweep(self, t, ranges):
+    def on_sweep(self, t: float, ranges: ArrayLike) -> None:
         """One sweep of the ring (REP 117 values, one per transducer, in mount order)."""
         if self.pose is None:
             return
@@ -381,7 +385,7 @@ class CoveragePlanner:
 
     # ------------------------------------------------------------------ main step
 
-    def update(self, t):
+    def update(self, t: float) -> Command:
         """Advance the planner at sim time t; returns the velocity command to send."""
         if self.pose is None:
             self.state = 'no_odometry'
@@ -424,7 +428,7 @@ class CoveragePlanner:
 
     # ------------------------------------------------------------------ memory: the cells
 
-    def decompose(self):
+    def decompose(self) -> dict[str, object]:
         """The cells of Section IV-A on the sensed part of the world (the robot's memory).
 
         Returns a dict of grid layers (crop of the evidence grid): D, FCS_r reachable from the
@@ -1295,7 +1299,7 @@ class CoveragePlanner:
 
     # ------------------------------------------------------------------ reporting
 
-    def status(self):
+    def status(self) -> dict[str, object]:
         """A compact, JSON-friendly status (published by the node)."""
         return {'state': self.state, 'current_node': self.current, 'sweeps': self.sweeps,
                 'nodes': len(self.graph.alive()),
@@ -1305,7 +1309,7 @@ class CoveragePlanner:
                 'last_event': list(self.events[-1]) if self.events else None}
 
 
-def graph_dict(planner) -> dict:
+def graph_dict(planner: CoveragePlanner | PaperPlanner) -> dict[str, object]:
     """The hierarchical decomposition graph of either planner as a JSON-friendly dict."""
     return planner.to_dict() if isinstance(planner, PaperPlanner) else planner.graph.to_dict()
 
@@ -1320,7 +1324,7 @@ class PlannerDriver:
     a max range not beyond delta is refused (UserError).
     """
 
-    def __init__(self, config, beam_width):
+    def __init__(self, config: PaperConfig | PlannerConfig, beam_width: float) -> None:
         """``config``: a PaperConfig (the paper planner) or a PlannerConfig (grid)."""
         self.cfg = config
         self.beam_width = float(beam_width)
@@ -1328,7 +1332,7 @@ class PlannerDriver:
         self.odom = []              # [(t, x, y, yaw)] not yet applied
         self.last_stamp = -math.inf
 
-    def on_odometry(self, t, x, y, yaw):
+    def on_odometry(self, t: float, x: float, y: float, yaw: float) -> None:
         self.odom.append((t, x, y, yaw))
         if self.planner is None and len(self.odom) > 200:
             self.odom = self.odom[-200:]
@@ -1343,7 +1347,8 @@ class PlannerDriver:
                 keep.append(o)
         self.odom = keep
 
-    def on_scan(self, t, ranges, angles, min_range, max_range):
+    def on_scan(self, t: float, ranges: ArrayLike, angles: ArrayLike, min_range: float,
+                max_range: float) -> Command | None:
         """Process one sweep stamped ``t``; returns the command to send (None if stale)."""
         if t <= self.last_stamp:
             return None
@@ -1355,7 +1360,7 @@ class PlannerDriver:
         self.planner.on_sweep(t, ranges)
         return self.planner.update(t)
 
-    def on_timer(self, t):
+    def on_timer(self, t: float) -> Command | None:
         """Watchdog tick: a command only when sweeps have stopped (stop / keep stopped)."""
         p = self.planner
         if p is None or p.t_sweep is None or t - p.t_sweep <= self.cfg.sonar_timeout:

@@ -13,11 +13,14 @@ the same planner and sonar model as the ROS graph):
 
 and draws the paper planner's run on the demo world (``coverage_paper_demo.png``).
 """
+from __future__ import annotations
+
 import os
 import platform
 import sys
 import tempfile
 import time
+from collections.abc import Iterable
 from pathlib import Path
 
 import numpy as np
@@ -71,7 +74,7 @@ def _num(v, digits=2):
     return '-' if v is None else f'{v:.{digits}f}'
 
 
-def comparison(worlds, quick=False):
+def comparison(worlds: Iterable[str | Path], quick: bool = False) -> list[dict[str, object]]:
     """Paper and grid planner on the same worlds; rows of measured figures."""
     rows = []
     for path in worlds:
@@ -85,7 +88,7 @@ def comparison(worlds, quick=False):
     return rows
 
 
-def ablations():
+def ablations() -> list[dict[str, object]]:
     """The paper planner with and without each event's sensing on its world."""
     rows = []
     for event, name, predicted in ABLATIONS:
@@ -97,7 +100,7 @@ def ablations():
     return rows
 
 
-def write_report(out_dir: Path, quick: bool = False) -> list:
+def write_report(out_dir: Path, quick: bool = False) -> list[Path]:
     """Rerun the headline measurements; write ``out_dir/coverage.md`` and its PNG.
 
     ``quick``: the demo world and one generated world, the grid planner on the demo world

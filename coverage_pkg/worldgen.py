@@ -8,6 +8,8 @@ becomes the world ``boundary`` and its holes the ``obstacles``, in the world JSO
 ``/work/shared/worlds/README.md``. Every world is validated by
 :func:`coverage_pkg.world.world_from_dict` before it is returned.
 """
+from __future__ import annotations
+
 import json
 import math
 from pathlib import Path
@@ -155,7 +157,8 @@ def _clutter(rng, free, rooms, radius):
     return obstacles
 
 
-def generate_world(seed, kind=None, radius=0.25):
+def generate_world(seed: int, kind: str | None = None,
+                   radius: float = 0.25) -> dict[str, object]:
     """One world dict (world JSON format) for ``seed``; ``kind`` in :data:`KINDS` or None (the
     seed chooses)."""
     rng = np.random.default_rng(seed)
@@ -211,7 +214,8 @@ def _start(rng, free, clutter, radius):
     raise UserError('generated world has no start with enough clearance')
 
 
-def write_worlds(out, count, seed=0, kind=None):
+def write_worlds(out: str | Path, count: int, seed: int = 0,
+                 kind: str | None = None) -> list[Path]:
     """Write ``count`` worlds ``<name>.json`` into directory ``out``; returns the paths."""
     if count < 1:
         raise UserError(f'--count {count}: must be at least 1')
