@@ -402,7 +402,9 @@ class PaperPlanner:
         new = self.create_node('narrow' if n.kind == 'vast' else 'vast', xy, idx)
         self.edges.append((n.id, new.id, xy) if n.kind == 'vast' else (new.id, n.id, xy))
         if new.kind == 'narrow':
-            new.branches.append(Branch(xy, None, idx))
+            into = None if self._cusp_dir is None else (math.cos(self._cusp_dir),
+                                                        math.sin(self._cusp_dir))
+            new.branches.append(Branch(xy, into, idx))   # leaves along the cusp's GVD edge
         if n.kind == 'narrow' and self.mode == 'gvd':
             self._end_branch('cusp')
 
