@@ -25,11 +25,15 @@ the sonar ring senses; no map is decomposed. The subroutines map one to one onto
 ``without`` switches the sensing of one event kind off (``cusp``, ``critical``, ``meet``), so
 that the run shows what the paper predicts without it. Plain numpy; no ROS.
 """
+from __future__ import annotations
+
 import heapq
 import math
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from coverage_pkg import gvd as gvdmod
 from paramotion.errors import UserError
@@ -38,7 +42,7 @@ EVENTS = ('cusp', 'critical', 'meet')
 TERMINAL = ('done', 'stuck', 'incomplete')
 
 
-def parse_without(value) -> tuple:
+def parse_without(value: str | Iterable[str] | None) -> tuple[str, ...]:
     """Event kinds from a comma-separated string or a list; UserError names a bad one."""
     items = value.split(',') if isinstance(value, str) else list(value or ())
     out = tuple(sorted({w.strip() for w in items if w.strip()}))
@@ -73,7 +77,7 @@ class PaperConfig:
         """Range of the detector used for coverage: delta."""
         return self.delta
 
-    def validate(self, sonar_max_range=None) -> None:
+    def validate(self, sonar_max_range: float | None = None) -> None:
         """Raise UserError (one line) for inconsistent parameters."""
         if not self.radius > 0:
             raise UserError(f'radius {self.radius:g} m must be > 0')
@@ -172,7 +176,7 @@ class TracedPaths:
             for gy in range(by - k, by + k + 1):
                 yield from self.grid.get((gx, gy), ())
 
-    def nearest(self, xy):
+    def nearest(self, xy: Sequence[float]) -> int | None:
         for reach in (1.0, 3.0, 10.0, 1e9):
             best = None
             for j in (self._near_point(xy, reach) if reach < 1e9 else range(len(self.xy))):
@@ -232,8 +236,8 @@ class PaperPlanner:
     ``injected`` holds ``(t, kind, (x, y))`` events handed to the planner as if sensed.
     """
 
-    def __init__(self, config: PaperConfig, mount_angles, beam_width: float, min_range: float,
-                 max_range: float, noise_std: float = 0.01):
+    def __init__(self, config: PaperConfig, mount_angles: ArrayLike, beam_width: float,
+                 min_range: float, max_range: float, noise_std: float = 0.01):
         config.validate(max_range)
         self.cfg = config
         self.mount = np.asarray(mount_angles, dtype=float)
@@ -277,7 +281,7 @@ class PaperPlanner:
                     self.segments.append([self.mode, step])
             self.pose = (float(x), float(y), float(yaw))
 
-    def on_sweep(self, t: float, ranges) -> None:
+    def on_sweep(self, t: float, ranges: ArrayLike) -> None:
         """One sweep of the ring (REP 117 values, in mount order): D, closest echoes, events."""
         if self.pose is None:
             return
@@ -378,7 +382,7 @@ class PaperPlanner:
 
     # ------------------------------------------------------------------ Algorithm 1
 
-    def create_node(self, kind: str, x: tuple, created_by=None) -> Node:
+    def create_node(self, kind: str, x: Sequence[float], created_by: int | None = None) -> Node:
         """CreateNode(x, D(x)): a new uncovered node of ``kind`` anchored at ``x``."""
         n = Node(len(self.nodes), kind, (float(x[0]), float(x[1])), created_by)
         self.nodes.append(n)
@@ -486,7 +490,7 @@ class PaperPlanner:
         self.edges.append((v, w, (float(xy[0]), float(xy[1]))))
         self._record(self.t_sweep, 'cusp_joins', xy, detail)
 
-    def find_uncovered_node(self):
+    def find_uncovered_node(self) -> Node | None:
         """FindUncoveredNode(N): the uncovered node nearest along the traced paths."""
         cands = [n for n in self.nodes if not n.covered]
         if not cands:

@@ -7,8 +7,12 @@ Dask task (:mod:`paramotion.sweep`; ``--serial`` runs them here one after the ot
 ``OUT/summary.json`` with covered % of CVS, path, lower bound |CVS|/(2 delta) and their ratio per
 world and the mean ratio. Results do not depend on Dask: the runs are lock-step and seeded.
 """
+from __future__ import annotations
+
+import argparse
 import datetime
 import os
+from collections.abc import Mapping
 from pathlib import Path
 
 from paramotion.errors import UserError
@@ -16,7 +20,7 @@ from paramotion.scenario_io import add_output_args, output_dir, write_json
 from paramotion.sweep import add_dask_args, run_args, run_tasks
 
 
-def coverage_case(case):
+def coverage_case(case: Mapping[str, object]) -> dict[str, object]:
     """One world of the sweep: the result dict of :func:`run_coverage` (JSON-ready).
     Module-level so that Dask can ship it to a worker process."""
     from coverage_pkg.scenario import DEFAULT_PLANNER, run_coverage
@@ -29,7 +33,7 @@ def coverage_case(case):
     return result
 
 
-def summary_row(name, result):
+def summary_row(name: str, result: Mapping[str, object]) -> dict[str, object]:
     """The summary line of one world: coverage, path, lower bound, ratio, outcome."""
     return {'world': name, 'outcome': result['outcome'],
             'covered_percent_of_cvs': 100.0 * result['covered_fraction_of_cvs'],
@@ -80,7 +84,7 @@ def _sweep(args):
     return 0
 
 
-def register_sweep(parser):
+def register_sweep(parser: argparse.ArgumentParser) -> None:
     """Hang ``sweep`` under the ``paramotion coverage`` parser without changing a plain run:
     ``--world`` stays required for a run (checked when no action is given)."""
     for action in parser._actions:
