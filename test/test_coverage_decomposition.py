@@ -1,4 +1,4 @@
-"""The planner builds the paper's decomposition from sensor events (issue 10).
+"""The grid planner's decomposition (`coverage_pkg.planner`, ours) on hand-made worlds.
 
 Constructed worlds whose hierarchical decomposition (Section IV-A: vast cells = components of
 VR = {D > delta}, narrow cells = components of NR = FCS_r minus VR) is known by hand; delta = 2 m,
