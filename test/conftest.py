@@ -5,6 +5,7 @@ a scenario) never hear each other. Each test creates its own Context/Graph and s
 """
 import os
 import random
+import signal
 import sys
 from pathlib import Path
 
@@ -19,6 +20,13 @@ os.environ['ROS_DOMAIN_ID'] = str(_rng.randint(1, 100))
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ.pop('ROS_LOCALHOST_ONLY', None)
 os.environ.setdefault('MPLBACKEND', 'Agg')
+
+# A terminal's Ctrl-C reaches processes whose SIGINT is at its default. Started in the
+# background by a non-interactive shell (as a CI runner may start it), this process has SIGINT
+# ignored, every node it starts would inherit that and rightly keep ignoring it
+# (paramotion/shutdown.py), and the tests that press Ctrl-C would test nothing. Installing
+# Python's handler here gives the started processes a default SIGINT again, as a terminal does.
+signal.signal(signal.SIGINT, signal.default_int_handler)
 
 REPO = _REPO
 BAGS = _REPO / 'bags'

@@ -53,18 +53,23 @@ def test_built_node_validates_parameters(workspace):
 def test_built_node_starts_and_stops_on_sigint(workspace):
     lib = workspace / 'install' / 'paramotion' / 'lib' / 'paramotion'
     proc = _run_in_ws(workspace, f'{lib}/smoke_controller')
-    # Interrupt only once the node is up (seen on the graph), not during its imports.
-    context = rclpy.Context()
-    rclpy.init(context=context)
-    probe = rclpy.create_node('colcon_probe', context=context)
     try:
-        up = wait_until(lambda: proc.poll() is not None
-                        or 'smoke_controller' in probe.get_node_names(), timeout=60.0)
+        # Interrupt only once the node is up (seen on the graph), not during its imports.
+        context = rclpy.Context()
+        rclpy.init(context=context)
+        probe = rclpy.create_node('colcon_probe', context=context)
+        try:
+            up = wait_until(lambda: proc.poll() is not None
+                            or 'smoke_controller' in probe.get_node_names(), timeout=60.0)
+        finally:
+            probe.destroy_node()
+            rclpy.try_shutdown(context=context)
+        assert up and proc.poll() is None, (up, proc.poll())
+        time.sleep(0.5)
+        os.killpg(proc.pid, signal.SIGINT)
+        _, err = proc.communicate(timeout=30)
+        assert proc.returncode == 0 and 'Traceback' not in err, err
     finally:
-        probe.destroy_node()
-        rclpy.try_shutdown(context=context)
-    assert up and proc.poll() is None, proc.communicate()[1]
-    time.sleep(0.5)
-    os.killpg(proc.pid, signal.SIGINT)
-    _, err = proc.communicate(timeout=30)
-    assert proc.returncode == 0 and 'Traceback' not in err, err
+        if proc.poll() is None:  # a failed check must not leave the node running
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait(timeout=10)
