@@ -101,7 +101,7 @@ def test_fast_sweep_on_dask_writes_the_serial_result(tmp_path):
     assert main(base + ['--out', str(tmp_path / 'dask'), '--workers', '2']) == 0
     serial = json.loads((tmp_path / 'serial' / 'sweep.json').read_text())
     dask = json.loads((tmp_path / 'dask' / 'sweep.json').read_text())
-    assert [r['mode'] for r in serial['rows']] == ['naive', 'predictive']
+    assert [r['mode'] for r in serial['rows']] == ['lu', 'cheng', 'predictive']
     assert dask == serial
 
 
