@@ -16,14 +16,11 @@ from nav_msgs.msg import Odometry
 from coverage_pkg.world import load_world_param
 from paramotion.node import Param, run_node
 from paramotion.qos import SENSOR_QOS, STATE_QOS
+from paramotion.rotations import quat_from_yaw
 from paramotion.sim import SimulationNode
 
 WALL_HEIGHT = 0.5
 WALL_THICKNESS = 0.02
-
-
-def _yaw_quaternion(yaw):
-    return (0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0))
 
 
 class CoverageSimNode(SimulationNode):
@@ -63,11 +60,11 @@ class CoverageSimNode(SimulationNode):
             ang = math.atan2(y2 - y1, x2 - x1)
             b.createMultiBody(0.0, shape, basePosition=[(x1 + x2) / 2, (y1 + y2) / 2,
                                                         WALL_HEIGHT / 2],
-                              baseOrientation=_yaw_quaternion(ang))
+                              baseOrientation=quat_from_yaw(ang))
         body = b.createCollisionShape(b.GEOM_CYLINDER, radius=p.radius, height=0.3)
         sx, sy = map(float, self.world.start)
         self.robot = b.createMultiBody(10.0, body, basePosition=[sx, sy, WALL_HEIGHT / 2],
-                                       baseOrientation=_yaw_quaternion(p.start_yaw))
+                                       baseOrientation=quat_from_yaw(p.start_yaw))
         b.changeDynamics(self.robot, -1, lateralFriction=0.0, linearDamping=0.0,
                          angularDamping=0.0)
         self.start = (sx, sy, float(p.start_yaw))
@@ -110,7 +107,7 @@ class CoverageSimNode(SimulationNode):
         # Keep the robot planar (contacts may tilt or lift it slightly).
         x, y, yaw = self.pose()
         b.resetBasePositionAndOrientation(self.robot, [x, y, WALL_HEIGHT / 2],
-                                          _yaw_quaternion(yaw))
+                                          quat_from_yaw(yaw))
         self.path_length += math.hypot(x - self._last_xy[0], y - self._last_xy[1])
         self._last_xy = (x, y)
 
@@ -121,7 +118,7 @@ class CoverageSimNode(SimulationNode):
         msg.child_frame_id = child
         msg.pose.pose.position.x = x
         msg.pose.pose.position.y = y
-        q = _yaw_quaternion(yaw)
+        q = quat_from_yaw(yaw)
         o = msg.pose.pose.orientation
         o.x, o.y, o.z, o.w = q
         lin, ang = self.bullet.getBaseVelocity(self.robot)

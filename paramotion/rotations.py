@@ -9,12 +9,15 @@ convert between the two.
 The single-pose helpers are scalar math (no per-call library overhead), for the 200 Hz loops
 where ``scipy.spatial.transform.Rotation`` costs more in call overhead than the arithmetic.
 """
+from __future__ import annotations
+
 import math
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 
-def matrix_from_rotvec(v):
+def matrix_from_rotvec(v: ArrayLike) -> np.ndarray:
     """Rotation matrix of a rotation vector (Rodrigues)."""
     x, y, z = float(v[0]), float(v[1]), float(v[2])
     th = math.sqrt(x * x + y * y + z * z)
@@ -29,7 +32,7 @@ def matrix_from_rotvec(v):
         [kz * kx * C - ky * s, kz * ky * C + kx * s, c + kz * kz * C]])
 
 
-def rotvec_from_matrix(R):
+def rotvec_from_matrix(R: ArrayLike) -> np.ndarray:
     """Rotation vector of a rotation matrix (via the quaternion, robust near 0 and pi)."""
     x, y, z, w = quat_from_matrix(R)
     if w < 0.0:
@@ -41,7 +44,7 @@ def rotvec_from_matrix(R):
     return np.array([x, y, z]) * (angle / s)
 
 
-def quat_from_matrix(R):
+def quat_from_matrix(R: ArrayLike) -> tuple[float, float, float, float]:
     """(x, y, z, w) unit quaternion of a rotation matrix (Shepperd's method)."""
     m00, m01, m02 = float(R[0][0]), float(R[0][1]), float(R[0][2])
     m10, m11, m12 = float(R[1][0]), float(R[1][1]), float(R[1][2])
@@ -63,7 +66,7 @@ def quat_from_matrix(R):
     return tuple(c / n for c in q)
 
 
-def matrix_from_quat(q):
+def matrix_from_quat(q: ArrayLike) -> np.ndarray:
     """Rotation matrix of an (x, y, z, w) quaternion (normalised first)."""
     x, y, z, w = (float(c) for c in q)
     n = math.sqrt(x * x + y * y + z * z + w * w)
@@ -74,24 +77,24 @@ def matrix_from_quat(q):
         [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
 
 
-def xyzw_from_wxyz(q):
+def xyzw_from_wxyz(q: ArrayLike) -> np.ndarray:
     """ROS-order (x, y, z, w) quaternion of Euler parameters (w, x, y, z); works on (..., 4)."""
     q = np.asarray(q, dtype=float)
     return np.concatenate([q[..., 1:], q[..., :1]], axis=-1)
 
 
-def wxyz_from_xyzw(q):
+def wxyz_from_xyzw(q: ArrayLike) -> np.ndarray:
     """Euler parameters (w, x, y, z) of a ROS-order (x, y, z, w) quaternion; works on (..., 4)."""
     q = np.asarray(q, dtype=float)
     return np.concatenate([q[..., 3:], q[..., :3]], axis=-1)
 
 
-def quat_from_yaw(yaw):
+def quat_from_yaw(yaw: float) -> tuple[float, float, float, float]:
     """(x, y, z, w) quaternion of a rotation by ``yaw`` radians about +z (REP 103)."""
     return (0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0))
 
 
-def yaw_from_quat(q):
+def yaw_from_quat(q: ArrayLike) -> float:
     """Yaw (rad) about +z of an (x, y, z, w) quaternion (normalised first).
 
     Raises ValueError for a zero or non-finite quaternion.
@@ -102,3 +105,26 @@ def yaw_from_quat(q):
         raise ValueError(f'quaternion {[x, y, z, w]} is zero or not finite')
     x, y, z, w = x / n, y / n, z / n, w / n
     return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+def matrices_from_quats(q: ArrayLike) -> np.ndarray:
+    """Rotation matrices ``(..., 3, 3)`` of (x, y, z, w) quaternions ``(..., 4)``, normalised.
+
+    Vectorised (many poses at once). Raises ValueError for a zero or non-finite quaternion.
+    """
+    q = np.asarray(q, dtype=float)
+    norm = np.linalg.norm(q, axis=-1, keepdims=True)
+    if not np.all(np.isfinite(q)) or np.any(norm < 1e-12):
+        raise ValueError('quaternion is zero or not finite')
+    x, y, z, w = np.moveaxis(q / norm, -1, 0)
+    out = np.empty(q.shape[:-1] + (3, 3))
+    out[..., 0, 0] = 1 - 2 * (y * y + z * z)
+    out[..., 0, 1] = 2 * (x * y - z * w)
+    out[..., 0, 2] = 2 * (x * z + y * w)
+    out[..., 1, 0] = 2 * (x * y + z * w)
+    out[..., 1, 1] = 1 - 2 * (x * x + z * z)
+    out[..., 1, 2] = 2 * (y * z - x * w)
+    out[..., 2, 0] = 2 * (x * z - y * w)
+    out[..., 2, 1] = 2 * (y * z + x * w)
+    out[..., 2, 2] = 1 - 2 * (x * x + y * y)
+    return out

@@ -27,6 +27,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike
 
+from paramotion.rotations import matrices_from_quats
+
 if TYPE_CHECKING:
     from cable_robot_pkg.cdrpm.description import RobotDescription
 
@@ -63,26 +65,10 @@ def rotation_matrix_deg(rx: ArrayLike, ry: ArrayLike, rz: ArrayLike) -> np.ndarr
 
 
 def quaternion_to_matrix(q: ArrayLike) -> np.ndarray:
-    """Rotation matrices from quaternions ``(..., 4)`` in ROS order (x, y, z, w), normalised.
-
-    Raises ValueError for a zero or non-finite quaternion.
+    """Rotation matrices from (x, y, z, w) quaternions ``(..., 4)``, normalised
+    (:func:`paramotion.rotations.matrices_from_quats`); ValueError for a zero or non-finite one.
     """
-    q = np.asarray(q, dtype=float)
-    norm = np.linalg.norm(q, axis=-1, keepdims=True)
-    if not np.all(np.isfinite(q)) or np.any(norm < 1e-12):
-        raise ValueError('quaternion is zero or not finite')
-    x, y, z, w = np.moveaxis(q / norm, -1, 0)
-    out = np.empty(q.shape[:-1] + (3, 3))
-    out[..., 0, 0] = 1 - 2 * (y * y + z * z)
-    out[..., 0, 1] = 2 * (x * y - z * w)
-    out[..., 0, 2] = 2 * (x * z + y * w)
-    out[..., 1, 0] = 2 * (x * y + z * w)
-    out[..., 1, 1] = 1 - 2 * (x * x + z * z)
-    out[..., 1, 2] = 2 * (y * z - x * w)
-    out[..., 2, 0] = 2 * (x * z - y * w)
-    out[..., 2, 1] = 2 * (y * z + x * w)
-    out[..., 2, 2] = 1 - 2 * (x * x + y * y)
-    return out
+    return matrices_from_quats(q)
 
 
 def matrix_to_angles_deg(rot: ArrayLike) -> tuple[np.ndarray | float, np.ndarray | float,

@@ -35,11 +35,6 @@ from paramotion.rotations import quat_from_matrix
 _EYE_Q = [0.0, 0.0, 0.0, 1.0]
 
 
-def _quat_from_matrix(R):
-    """PyBullet (x, y, z, w) quaternion of a rotation matrix."""
-    return list(quat_from_matrix(R))
-
-
 def _matrix(q):
     return np.array(pybullet.getMatrixFromQuaternion(q)).reshape(3, 3)
 
@@ -143,7 +138,7 @@ class FeedSupportPlant:
             masses += [leg_m, leg_m]
             shapes += [leg_shape, leg_shape]
             positions += [list(base_local[i]), [0, 0, float(self.nominal_lengths[i])]]
-            orients += [_quat_from_matrix(R_leg), _EYE_Q]
+            orients += [list(quat_from_matrix(R_leg)), _EYE_Q]
             inertial_pos += [[0, 0, 0.2], [0, 0, -0.2]]
             cyl_index = 2 + 2 * i
             parents += [2, cyl_index + 1]
@@ -165,7 +160,7 @@ class FeedSupportPlant:
             baseMass=gs['feed_mass'],
             baseCollisionShapeIndex=b.createCollisionShape(
                 b.GEOM_CYLINDER, radius=gs['platform_radius'], height=0.06),
-            basePosition=list(feed_p), baseOrientation=_quat_from_matrix(feed_R))
+            basePosition=list(feed_p), baseOrientation=list(quat_from_matrix(feed_R)))
         for body in (self.body, self.feed):
             for link in range(-1, b.getNumJoints(body)):
                 b.setCollisionFilterGroupMask(body, link, 0, 0)
