@@ -20,9 +20,13 @@ pose, a tension distribution that balances the suspended weight within the tensi
 (minimum-norm deviation from a mid tension, bounded least squares when that leaves the limits),
 then ``L0 = EA L / (EA + T)``.
 """
+from __future__ import annotations
+
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.optimize import lsq_linear
 
 
@@ -46,7 +50,7 @@ class CableSystem:
     ``EA`` and ``damping`` may be scalars or per-cable arrays.
     """
 
-    def __init__(self, cables, EA, damping):
+    def __init__(self, cables: Iterable[Cable], EA: ArrayLike, damping: ArrayLike):
         self.cables = list(cables)
         self.names = [c.name for c in self.cables]
         self.n = len(self.cables)
@@ -64,11 +68,12 @@ class CableSystem:
         self._mask3 = self.anchor_mask[..., None]
 
     # ----------------------------------------------------------------- geometry
-    def attach_world(self, position, rotation):
+    def attach_world(self, position: ArrayLike, rotation: ArrayLike) -> np.ndarray:
         """World positions (n, 3) of the trolley attachment points."""
         return np.asarray(position) + self.attach @ np.asarray(rotation).T
 
-    def geometry(self, position, rotation):
+    def geometry(self, position: ArrayLike,
+                 rotation: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Stretched lengths (n,) and force directions (n, 3) for a trolley pose.
 
         The direction of cable i is the sum of the unit vectors from its trolley point toward
@@ -83,18 +88,19 @@ class CableSystem:
         lengths = np.where(self.anchor_mask, span_len, 0.0).sum(axis=1)
         return lengths, units.sum(axis=1)
 
-    def lengths(self, position, rotation):
+    def lengths(self, position: ArrayLike, rotation: ArrayLike) -> np.ndarray:
         """Stretched (geometric) cable lengths (n,) at a trolley pose."""
         return self.geometry(position, rotation)[0]
 
-    def wrench_matrix(self, position, rotation):
+    def wrench_matrix(self, position: ArrayLike, rotation: ArrayLike) -> np.ndarray:
         """Structure matrix W (6, n): the wrench on the trolley (force; torque about its
         origin, world axes) is ``W @ T`` for cable tensions T."""
         _, dirs = self.geometry(position, rotation)
         r = np.asarray(self.attach) @ np.asarray(rotation).T
         return np.vstack([dirs.T, np.cross(r, dirs).T])
 
-    def length_rates(self, position, rotation, linear_velocity, angular_velocity):
+    def length_rates(self, position: ArrayLike, rotation: ArrayLike,
+                     linear_velocity: ArrayLike, angular_velocity: ArrayLike) -> np.ndarray:
         """dL/dt (n,) from the trolley twist: minus the projection of each point's velocity on
         the cable direction (the cable shortens when the point moves toward the pulleys)."""
         r = np.asarray(self.attach) @ np.asarray(rotation).T
@@ -103,7 +109,8 @@ class CableSystem:
         return -np.einsum('ij,ij->i', v, dirs)
 
     # ----------------------------------------------------------------- forces
-    def tensions(self, lengths, length_rates, unstretched, unstretched_rates=0.0):
+    def tensions(self, lengths: ArrayLike, length_rates: ArrayLike, unstretched: ArrayLike,
+                 unstretched_rates: ArrayLike = 0.0) -> tuple[np.ndarray, np.ndarray]:
         """Cable tensions (n,) and slack mask: elastic EA (L - L0)/L0 plus damping, clipped at 0.
 
         A cable whose stretched length does not exceed its unstretched length is slack and
@@ -118,8 +125,10 @@ class CableSystem:
         t = np.where(taut, np.maximum(t, 0.0), 0.0)
         return t, ~taut
 
-    def wrench(self, position, rotation, linear_velocity, angular_velocity, unstretched,
-               unstretched_rates=0.0):
+    def wrench(self, position: ArrayLike, rotation: ArrayLike, linear_velocity: ArrayLike,
+               angular_velocity: ArrayLike, unstretched: ArrayLike,
+               unstretched_rates: ArrayLike = 0.0
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Total cable force and torque (about the trolley origin, world axes) on the trolley.
 
         Returns ``(force (3,), torque (3,), tensions (n,), lengths (n,), slack (n,))``.
@@ -141,12 +150,14 @@ class CableSystem:
         return f_i.sum(axis=0), _cross(r, f_i).sum(axis=0), t, lengths, slack
 
     # ----------------------------------------------------------------- inverse kinematics
-    def unstretched_for(self, lengths, tensions):
+    def unstretched_for(self, lengths: ArrayLike, tensions: ArrayLike) -> np.ndarray:
         """Unstretched lengths that give ``tensions`` at stretched ``lengths``:
         L0 = EA L / (EA + T) (inverse of T = EA (L - L0) / L0)."""
         return self.EA * np.asarray(lengths) / (self.EA + np.asarray(tensions))
 
-    def tension_distribution(self, position, rotation, load_wrench, t_min, t_max, t_ref=None):
+    def tension_distribution(self, position: ArrayLike, rotation: ArrayLike,
+                             load_wrench: ArrayLike, t_min: float, t_max: float,
+                             t_ref: ArrayLike | None = None) -> np.ndarray:
         """Tensions T (n,) with ``W T + load_wrench = 0`` and ``t_min <= T <= t_max``.
 
         Minimises ``|T - t_ref|`` (default mid-range): the closed-form minimum-norm solution when
@@ -183,7 +194,9 @@ class CableSystem:
                 f'position {np.round(position, 3).tolist()} (residual {residual:.1f} N)')
         return np.clip(t, t_min, t_max)
 
-    def inverse_kinematics(self, position, rotation, load_wrench, t_min, t_max):
+    def inverse_kinematics(self, position: ArrayLike, rotation: ArrayLike,
+                           load_wrench: ArrayLike, t_min: float, t_max: float
+                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Trolley pose -> (unstretched lengths L0 (n,), stretched lengths L (n,), tensions)."""
         t = self.tension_distribution(position, rotation, load_wrench, t_min, t_max)
         lengths = self.lengths(position, rotation)
@@ -203,7 +216,8 @@ def _cross(a, b):
     return out
 
 
-def gravity_wrench(mass, com_world_offset, gravity=9.81):
+def gravity_wrench(mass: float, com_world_offset: ArrayLike,
+                   gravity: float = 9.81) -> np.ndarray:
     """Weight of the suspended mass as a wrench about the trolley origin (world axes)."""
     f = np.array([0.0, 0.0, -mass * gravity])
     return np.concatenate([f, np.cross(np.asarray(com_world_offset, float), f)])

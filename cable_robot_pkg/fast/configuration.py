@@ -14,14 +14,18 @@ checks every number's sign and range and then the system as a whole *before* a r
 Any failure raises :class:`paramotion.errors.UserError` with one line naming the key and what is
 wrong, e.g. ``fast.yaml: cables.EA = -1 must be > 0``.
 """
+from __future__ import annotations
+
 import copy
 import itertools
 import math
 import os
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
 import yaml
+from numpy.typing import ArrayLike
 
 from cable_robot_pkg.fast.cables import Cable, CableSystem, InfeasibleTensionError, gravity_wrench
 from cable_robot_pkg.fast.focal_surface import (
@@ -46,7 +50,8 @@ ISOLATION_MODES = ('lu', 'cheng', 'predictive')
 ABLATIONS = ('tracker_feedback', 'isolation', 'prediction')
 
 
-def parse_without(value, name='without') -> frozenset:
+def parse_without(value: str | Iterable[object] | None,
+                  name: str = 'without') -> frozenset[str]:
     """Ablation names from a comma-separated string or a list of strings; a name that is not
     one of :data:`ABLATIONS` raises :class:`UserError` with one line naming ``name``."""
     if isinstance(value, str):
@@ -151,22 +156,23 @@ class FastConfig:
     suspended_mass: float
     com_below_trolley: float
 
-    def section(self, name):
+    def section(self, name: str) -> dict:
         """A top-level section of the raw config (a dict)."""
         return self.raw[name]
 
-    def value(self, key):
+    def value(self, key: str) -> object:
         """A raw value by dotted key, e.g. ``'cables.EA'``."""
         return _Reader(self.raw, self.source).get(key)
 
-    def tension_targets(self, trolley_position, feed_rotation):
+    def tension_targets(self, trolley_position: ArrayLike,
+                        feed_rotation: ArrayLike) -> np.ndarray:
         """Planned cable tensions at a level trolley pose (raises InfeasibleTensionError)."""
         c = self.raw['cables']
         return self.cables.tension_distribution(
             trolley_position, np.eye(3), self.load_wrench(feed_rotation), c['tension_min'],
             c['tension_max'], np.full(self.cables.n, c['tension_ref']))
 
-    def load_wrench(self, feed_rotation):
+    def load_wrench(self, feed_rotation: ArrayLike) -> np.ndarray:
         """Weight of everything hanging on the cables as a wrench about the trolley origin,
         for a feed orientation (the hinge tilts the platforms' centre of mass)."""
         axis = np.asarray(feed_rotation)[:, 2]
@@ -174,7 +180,8 @@ class FastConfig:
         return gravity_wrench(self.suspended_mass, offset)
 
 
-def load_config(path=None, overrides=None):
+def load_config(path: str | os.PathLike[str] | None = None,
+                overrides: dict | None = None) -> FastConfig:
     """Read, merge over the defaults, and validate a config; returns :class:`FastConfig`."""
     with open(DEFAULT_CONFIG, encoding='utf-8') as f:
         raw = yaml.safe_load(f)
@@ -211,7 +218,7 @@ def load_config(path=None, overrides=None):
     return validate(raw, source)
 
 
-def validate(raw, source='config'):
+def validate(raw: dict, source: str = 'config') -> FastConfig:
     """Check every field, then reachability and stroke; build the model objects.
 
     One step per section of the file, in the order a reader meets them: the field and its

@@ -17,14 +17,23 @@ where ``L0_ff`` is the feedforward unstretched length of the cable inverse kinem
 - *tension floor*: a winch whose measured tension is below ``tension_floor`` never pays out
   further (that would slacken its cable); it may still reel in.
 """
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
 import numpy as np
+from numpy.typing import ArrayLike
+
+if TYPE_CHECKING:
+    from cable_robot_pkg.fast.configuration import FastConfig
 
 
 class PID:
     """Vectorised PID (one channel per element) with conditional-integration anti-windup and a
     first-order filtered derivative (time constant ``derivative_tau``)."""
 
-    def __init__(self, n, kp, ki, kd, output_limit=np.inf, derivative_tau=0.02):
+    def __init__(self, n: int, kp: ArrayLike, ki: ArrayLike, kd: ArrayLike,
+                 output_limit: ArrayLike = np.inf, derivative_tau: float = 0.02):
         self.n = n
         self.kp, self.ki, self.kd = (np.broadcast_to(np.asarray(g, float), (n,)).copy()
                                      for g in (kp, ki, kd))
@@ -32,13 +41,14 @@ class PID:
         self.tau = derivative_tau
         self.reset()
 
-    def reset(self):
+    def reset(self) -> None:
         """Forget the integral and derivative state."""
         self.integral = np.zeros(self.n)
         self.prev_error = None
         self.derivative = np.zeros(self.n)
 
-    def update(self, error, dt, blocked=None):
+    def update(self, error: ArrayLike, dt: float,
+               blocked: ArrayLike | None = None) -> np.ndarray:
         """Output for this error. ``blocked`` (n,) of -1/0/+1 marks channels whose actuator
         cannot move in that direction (speed limit, tension floor): the integrator is frozen
         when the error would push further that way."""
@@ -63,7 +73,8 @@ class PID:
 class WinchController:
     """The coarse loop: per-winch PID on cable length errors plus cable IK feedforward."""
 
-    def __init__(self, n, kp, ki, kd, speed_max, correction_max, tension_floor):
+    def __init__(self, n: int, kp: ArrayLike, ki: ArrayLike, kd: ArrayLike, speed_max: float,
+                 correction_max: ArrayLike, tension_floor: float):
         self.pid = PID(n, kp, ki, kd, output_limit=correction_max)
         self.speed_max = float(speed_max)
         self.floor = float(tension_floor)
@@ -73,18 +84,19 @@ class WinchController:
         self.floor_active = np.zeros(n, bool)
 
     @classmethod
-    def from_config(cls, cfg):
+    def from_config(cls, cfg: FastConfig) -> WinchController:
         """Build from a validated FastConfig (``cable_controller`` and ``cables`` sections)."""
         cc, cab = cfg.raw['cable_controller'], cfg.raw['cables']
         return cls(cfg.cables.n, cc['kp'], cc['ki'], cc['kd'], cab['winch_speed_max'],
                    cc['correction_max'], cab['tension_floor'])
 
-    def reset(self, unstretched):
+    def reset(self, unstretched: ArrayLike) -> None:
         """Start from the winches' current unstretched lengths."""
         self.command = np.asarray(unstretched, float).copy()
         self.pid.reset()
 
-    def update(self, dt, feedforward, length_error, tensions=None):
+    def update(self, dt: float, feedforward: ArrayLike, length_error: ArrayLike,
+               tensions: ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray]:
         """New unstretched-length commands (n,) and winch speeds (n,).
 
         ``feedforward``: L0 of the cable IK at the target; ``length_error``: ``L(target) -
@@ -122,7 +134,7 @@ class CoarseController:
     not used. ``notes`` collects this period's warnings (for the node's log/diagnostics).
     """
 
-    def __init__(self, cfg, dt: float, open_loop: bool = False):
+    def __init__(self, cfg: FastConfig, dt: float, open_loop: bool = False):
         self.cfg = cfg
         self.dt = float(dt)
         self.open_loop = bool(open_loop)
@@ -130,12 +142,15 @@ class CoarseController:
         self.plan = None
         self.notes = []
 
-    def targets(self, feed_p, feed_R) -> tuple:
+    def targets(self, feed_p: ArrayLike, feed_R: ArrayLike
+                ) -> tuple[np.ndarray, tuple[float, float]]:
         """``(trolley target position, (alpha, beta))`` for a feed target."""
         trolley_p, hinge, _, _ = self.cfg.chain.coarse_targets(feed_p, feed_R)
         return trolley_p, hinge
 
-    def update(self, feed_p, feed_R, trolley=None, tensions=None):
+    def update(self, feed_p: ArrayLike, feed_R: ArrayLike,
+               trolley: tuple[ArrayLike, ArrayLike] | None = None,
+               tensions: ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray] | None:
         """Winch ``(commands, rates)`` for this period; ``trolley`` = tracked ``(p, R)`` or
         None (no fresh measurement: the winches hold). None when the very first target is
         outside the tension-feasible workspace."""

@@ -21,14 +21,18 @@ position and 3 deg in orientation"). We model it the usual way for wind engineer
 ``intensity`` (the scenario's ``--wind``) scales the mean speed and the gust rate; 0 is no
 wind. Everything is drawn from one seeded generator, so a run is reproducible.
 """
+from __future__ import annotations
+
 import math
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 RHO_AIR = 1.225  # kg/m^3
 
 
-def spectrum(kind, f, mean_speed, length, sigma):
+def spectrum(kind: str, f: ArrayLike, mean_speed: float, length: float,
+             sigma: float) -> np.ndarray:
     """One-sided PSD S(f) (units^2/Hz) of a turbulent component of std ``sigma``."""
     f = np.asarray(f, float)
     u = max(mean_speed, 0.1)
@@ -45,7 +49,8 @@ def spectrum(kind, f, mean_speed, length, sigma):
     return sigma ** 2 * s
 
 
-def synthesize(rng, kind, mean_speed, length, sigma, dt, n):
+def synthesize(rng: np.random.Generator, kind: str, mean_speed: float, length: float,
+               sigma: float, dt: float, n: int) -> np.ndarray:
     """A zero-mean series of ``n`` samples at ``dt`` with the given spectrum, scaled to exactly
     ``sigma`` standard deviation (spectral representation, random phases)."""
     f = np.fft.rfftfreq(n, dt)
@@ -61,10 +66,12 @@ def synthesize(rng, kind, mean_speed, length, sigma, dt, n):
 class WindModel:
     """Wind force and torque on the trolley as a function of time (deterministic per seed)."""
 
-    def __init__(self, mean_speed, direction, turbulence_intensity, integral_length,
-                 spectrum_kind, area, drag_coefficient, centre_of_pressure, torque_scale,
-                 gust_rate, gust_amplitude, gust_duration, intensity=1.0, seed=0,
-                 sample_dt=0.02, block_seconds=600.0):
+    def __init__(self, mean_speed: float, direction: float, turbulence_intensity: float,
+                 integral_length: float, spectrum_kind: str, area: float,
+                 drag_coefficient: float, centre_of_pressure: ArrayLike, torque_scale: float,
+                 gust_rate: float, gust_amplitude: float, gust_duration: float,
+                 intensity: float = 1.0, seed: int | None = 0, sample_dt: float = 0.02,
+                 block_seconds: float = 600.0):
         self.U = mean_speed * intensity
         self.direction = direction
         self.I = turbulence_intensity
@@ -85,7 +92,8 @@ class WindModel:
         self._gust_horizon = 0.0
 
     @classmethod
-    def from_config(cls, wind, trolley, intensity=1.0, seed=None):
+    def from_config(cls, wind: dict, trolley: dict, intensity: float = 1.0,
+                    seed: int | None = None) -> WindModel:
         """Build from the config's ``wind`` and ``trolley`` sections."""
         return cls(wind['mean_speed'], math.radians(wind['direction_deg']),
                    wind['turbulence_intensity'], wind['integral_length'], wind['spectrum'],
@@ -126,7 +134,7 @@ class WindModel:
                 g += a * self.U * 0.5 * (1.0 - math.cos(2.0 * math.pi * (t - t0) / self.gust_T))
         return g
 
-    def velocity(self, t):
+    def velocity(self, t: float) -> np.ndarray:
         """Wind velocity (3,) in the map frame at time ``t``."""
         if self.U <= 0.0:
             return np.zeros(3)
@@ -138,7 +146,8 @@ class WindModel:
         c, s = math.cos(self.direction), math.sin(self.direction)
         return np.array([along * c - v * s, along * s + v * c, w])
 
-    def wrench(self, t, rotation=None):
+    def wrench(self, t: float,
+               rotation: ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Wind force (3,) and torque (3,) about the trolley origin, map axes.
 
         Runs every physics step: the turbulence is interpolated once for velocity and torque
