@@ -9,6 +9,8 @@
   time on a private DDS domain, stopped with SIGINT; the feed error comes from the recorded bag
   and each node's CPU share from its rusage. ``PARAMOTION_EXECUTOR`` picks the nodes' executor.
 """
+from __future__ import annotations
+
 import math
 import os
 import random
@@ -16,12 +18,13 @@ import signal
 import subprocess
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 SETTLE_S = 5.0
 
 
-def bench_one_process(duration: float = 10.0, repeat: int = 3) -> dict:
+def bench_one_process(duration: float = 10.0, repeat: int = 3) -> dict[str, float]:
     """Median wall and CPU real-time factors of ``repeat`` one-process runs of ``duration``."""
     from cable_robot_pkg.fast.scenario import run_graph
     walls, cpus = [], []
@@ -123,7 +126,7 @@ def bench_processes(wall_s: float = 40.0, real_time_factor: float = 1.0,
     }
 
 
-def bench_fast(quick: bool, options: dict) -> dict:
+def bench_fast(quick: bool, options: dict) -> dict[str, float]:
     """``paramotion bench``'s FAST figures: 1 sim second once (quick) or 5 s, median of 3."""
     return bench_one_process(duration=1.0 if quick else 5.0, repeat=1 if quick else 3)
 
@@ -131,8 +134,8 @@ def bench_fast(quick: bool, options: dict) -> dict:
 #: Benchmarks that run a lock-step Graph (paramotion bench measures its levers on them).
 LOCKSTEP = ('fast',)
 
-def report_lines(quick: bool, log=print, wall_s: float = 60.0,
-                 real_time_factor: float = 1.0) -> list:
+def report_lines(quick: bool, log: Callable[[str], object] = print, wall_s: float = 60.0,
+                 real_time_factor: float = 1.0) -> list[str]:
     """Markdown table for the performance page: the FAST launch file one process per node at
     ``real_time_factor`` for ``wall_s`` s of wall time, once per node executor, with each
     node's CPU share and the load average (not part of ``--quick``)."""

@@ -15,11 +15,14 @@ leaves of that error.
 A suspension cable over the trolley pulley is analysed as its two spans, each with its share
 of the unstretched length (the pulley's equalisation of the two tensions is not modelled).
 """
+from __future__ import annotations
+
 import math
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-from cable_robot_pkg.fast.configuration import load_config
+from cable_robot_pkg.fast.configuration import FastConfig, load_config
 
 
 def axial_stiffness(diameter: float, modulus: float, fill: float = 0.58) -> float:
@@ -29,7 +32,7 @@ def axial_stiffness(diameter: float, modulus: float, fill: float = 0.58) -> floa
 
 
 def elastic_catenary(span: float, rise: float, L0: float, EA: float, w: float,
-                     guess=None) -> tuple:
+                     guess: tuple[float, float] | None = None) -> tuple[float, float]:
     """Horizontal tension ``H`` and vertical force ``V`` at the *upper* end of an elastic
     catenary (Irvine) whose upper end is ``span`` (horizontal) and ``rise`` (vertical, > 0)
     from its lower end. The lower end feels ``H`` toward the upper end horizontally and
@@ -76,7 +79,8 @@ def _segments(cfg):
     return out
 
 
-def cable_forces(cfg, position, L0, EA, w) -> np.ndarray:
+def cable_forces(cfg: FastConfig, position: ArrayLike, L0: ArrayLike, EA: float,
+                 w: float) -> np.ndarray:
     """Total cable force (3,) on a level trolley at ``position`` for unstretched lengths
     ``L0`` (n,); each span an elastic catenary (``w`` = 0: straight)."""
     total = np.zeros(3)
@@ -99,7 +103,8 @@ def cable_forces(cfg, position, L0, EA, w) -> np.ndarray:
     return total
 
 
-def equilibrium(cfg, L0, EA, w, start) -> np.ndarray:
+def equilibrium(cfg: FastConfig, L0: ArrayLike, EA: float, w: float,
+                start: ArrayLike) -> np.ndarray:
     """Trolley position where the cable forces carry the suspended weight (Newton)."""
     weight = np.array([0.0, 0.0, -9.81 * cfg.suspended_mass])
     x = np.asarray(start, float).copy()
@@ -117,8 +122,9 @@ def equilibrium(cfg, L0, EA, w, start) -> np.ndarray:
     return x
 
 
-def errors(cfg=None, EA=None, w=0.0, model='elastic', ki_dt=1.0, iterations=60,
-           tol=1e-6) -> dict:
+def errors(cfg: FastConfig | None = None, EA: float | None = None, w: float = 0.0,
+           model: str = 'elastic', ki_dt: float = 1.0, iterations: int = 60,
+           tol: float = 1e-6) -> dict[str, float | list[float]]:
     """Trolley position error (m) at the track's first target, open loop and under terminal
     feedback, for a plant with stiffness ``EA`` and cable weight ``w`` (N/m) and winch lengths
     from ``model`` (``'rigid'``: L0 = L, ``'elastic'``: the controller's cable IK). Terminal
@@ -143,7 +149,7 @@ def errors(cfg=None, EA=None, w=0.0, model='elastic', ki_dt=1.0, iterations=60,
             'open_loop_vector_m': (open_loop - target).tolist()}
 
 
-def error_table(quick: bool = False) -> list:
+def error_table(quick: bool = False) -> list[str]:
     """Markdown rows: static trolley (= feed, the legs hold their nominal pose) error from
     ignoring elasticity or sag, open loop and with terminal feedback (``quick``: the two
     steel-rope rows only)."""

@@ -42,11 +42,16 @@ Faults: a base measurement that is not finite is dropped; when no valid base mea
 arrived for ``dropout_timeout`` the controller *holds* the last leg command (zero rate) and
 reports ``holding``; when measurements return it re-initialises the predictor and resumes.
 """
+from __future__ import annotations
+
 import math
 from collections import deque
+from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from paramotion.gough_stewart import (
     GoughStewartGeometry,
@@ -56,6 +61,10 @@ from paramotion.gough_stewart import (
     inverse_kinematics,
 )
 from paramotion.rotations import matrix_from_rotvec, rotvec_from_matrix
+
+if TYPE_CHECKING:
+    from cable_robot_pkg.fast.configuration import FastConfig
+    from cable_robot_pkg.fast.focal_surface import FeedSupportChain
 
 MODES = ('lu', 'cheng', 'predictive')
 
@@ -79,7 +88,8 @@ def _detrend(t, x):
     return x - A @ coef
 
 
-def steady_state_covariance(q, r, dt, tol=1e-12, max_iter=60):
+def steady_state_covariance(q: float, r: float, dt: float, tol: float = 1e-12,
+                            max_iter: int = 60) -> np.ndarray:
     """A-priori covariance of the steady-state :class:`ConstantAccelerationKF` (one coordinate,
     position measured with variance ``r`` every ``dt``): the solution ``P`` of the discrete
     Riccati equation ``P = F P F^T - F P e1 (e1^T P e1 + r)^-1 e1^T P F^T + Q``, by the
@@ -100,7 +110,8 @@ def steady_state_covariance(q, r, dt, tol=1e-12, max_iter=60):
     return H
 
 
-def predictor_response(q, r, dt, horizon, freqs):
+def predictor_response(q: float, r: float, dt: float, horizon: float,
+                       freqs: ArrayLike) -> np.ndarray:
     """Frequency response of the steady-state :class:`ConstantAccelerationKF` used as a
     predictor: measurements of a signal ``s`` sampled every ``dt`` and fused with noise
     variance ``r``, state extrapolated ``horizon`` seconds past the newest sample (the tracker
@@ -123,8 +134,10 @@ def predictor_response(q, r, dt, horizon, freqs):
     return (X @ h) * np.exp(-2j * np.pi * np.asarray(freqs, float) * horizon)
 
 
-def schedule_predictor(q_max, r, dt, horizon, peak_max, band, n_q=32, spectrum=None,
-                       lag_tolerance=1e-3):
+def schedule_predictor(q_max: float, r: float, dt: float, horizon: float, peak_max: float,
+                       band: tuple[float, float], n_q: int = 32,
+                       spectrum: tuple[ArrayLike, ArrayLike] | None = None,
+                       lag_tolerance: float = 1e-3) -> tuple[float, float, float]:
     """Process noise ``q`` (<= ``q_max``) and compensation gain ``g`` (<= 1) of the base
     predictor for a measured latency (``horizon``).
 
@@ -172,7 +185,7 @@ def schedule_predictor(q_max, r, dt, horizon, peak_max, band, n_q=32, spectrum=N
 class ConstantAccelerationKF:
     """Kalman filter for m independent coordinates sharing one [p, v, a] model and noise."""
 
-    def __init__(self, m, process_noise, measurement_std):
+    def __init__(self, m: int, process_noise: float, measurement_std: float):
         self.m = m
         self.q = float(process_noise)
         self.r = float(measurement_std) ** 2
@@ -180,14 +193,14 @@ class ConstantAccelerationKF:
         self.P = np.diag([1.0, 1.0, 1.0])
         self.t = None
 
-    def reset(self, t, z):
+    def reset(self, t: float, z: ArrayLike) -> None:
         """Start at measurement ``z`` (m,) at time ``t`` with unknown rates."""
         self.x = np.zeros((3, self.m))
         self.x[0] = z
         self.P = np.diag([self.r, 1.0, 100.0])
         self.t = t
 
-    def update(self, t, z):
+    def update(self, t: float, z: ArrayLike) -> None:
         """Predict to ``t`` and fuse measurement ``z`` (m,)."""
         dt = t - self.t
         if dt > 0:
@@ -200,7 +213,7 @@ class ConstantAccelerationKF:
         self.x = self.x + np.outer(K, np.asarray(z) - self.x[0])
         self.P = self.P - np.outer(K, self.P[0])
 
-    def predict(self, t, order=2):
+    def predict(self, t: float, order: int = 2) -> np.ndarray:
         """State [p, v, a] (3, m) extrapolated to time ``t`` (no update); ``order`` 1
         extrapolates with the velocity only."""
         F = _transition(t - self.t)
@@ -212,8 +225,8 @@ class ConstantAccelerationKF:
 class PosePredictor:
     """Predicts a tracked rigid body's pose forward from stamped, delayed measurements."""
 
-    def __init__(self, process_noise, process_noise_rotation, position_std, rotation_std,
-                 reset_gap=0.5):
+    def __init__(self, process_noise: float, process_noise_rotation: float,
+                 position_std: float, rotation_std: float, reset_gap: float = 0.5):
         self.pos = ConstantAccelerationKF(3, process_noise, max(position_std, 1e-6))
         self.rot = ConstantAccelerationKF(3, process_noise_rotation, max(rotation_std, 1e-7))
         self.R_ref = None
@@ -221,11 +234,11 @@ class PosePredictor:
         self.reset_gap = reset_gap
 
     @property
-    def ready(self):
+    def ready(self) -> bool:
         """True once a measurement has been fused."""
         return self.last_stamp is not None
 
-    def add(self, stamp, position, rotation):
+    def add(self, stamp: float, position: ArrayLike, rotation: ArrayLike) -> bool:
         """Fuse a pose captured at ``stamp``; older or non-finite measurements are refused
         (returns False). Several measurements with the same stamp (the same body seen through
         different sensor chains) are all fused."""
@@ -250,7 +263,8 @@ class PosePredictor:
         self.last_stamp = stamp
         return True
 
-    def predict(self, t: float, order: int = 2) -> tuple:
+    def predict(self, t: float, order: int = 2
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(position, rotation, velocity, angular velocity in the reference frame) at ``t``,
         extrapolated with [p, v, a] (``order`` 2) or with [p, v] only (``order`` 1)."""
         xp = self.pos.predict(t, order)
@@ -263,19 +277,19 @@ class TargetHistory:
     """Recent feed targets by time, so that a delayed measurement is compared with the target
     at its own capture time."""
 
-    def __init__(self, horizon=1.0):
+    def __init__(self, horizon: float = 1.0):
         self.items = deque()
         self.horizon = horizon
 
-    def add(self, t, position, rotation):
+    def add(self, t: float, position: ArrayLike, rotation: ArrayLike) -> None:
         self.items.append((t, np.asarray(position, float), np.asarray(rotation, float)))
         while len(self.items) > 2 and self.items[-1][0] - self.items[0][0] > self.horizon:
             self.items.popleft()
 
-    def latest(self):
+    def latest(self) -> tuple[float, np.ndarray, np.ndarray] | None:
         return self.items[-1] if self.items else None
 
-    def at(self, t):
+    def at(self, t: float) -> tuple[np.ndarray, np.ndarray] | None:
         """Target (position, rotation) at ``t``: linear in position, nearest in rotation."""
         if not self.items:
             return None
@@ -291,7 +305,7 @@ class TargetHistory:
         last = self.items[-1]
         return last[1], last[2]
 
-    def velocity(self):
+    def velocity(self) -> tuple[np.ndarray, np.ndarray]:
         """Finite-difference target velocity (3,) and angular velocity (3,), map frame."""
         if len(self.items) < 2:
             return np.zeros(3), np.zeros(3)
@@ -301,7 +315,8 @@ class TargetHistory:
         return (p1 - p0) / dt, w
 
 
-def pose_error(target_p, target_R, p, R):
+def pose_error(target_p: ArrayLike, target_R: ArrayLike, p: ArrayLike,
+               R: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Position error (3,) and rotation-vector error (3,) target minus actual, map frame."""
     return (np.asarray(target_p) - np.asarray(p),
             rotvec_from_matrix(np.asarray(target_R) @ np.asarray(R).T))
@@ -310,12 +325,12 @@ def pose_error(target_p, target_R, p, R):
 class SampleHistory:
     """Encoder samples (time, vector) kept for ``horizon`` seconds, read at a past time."""
 
-    def __init__(self, horizon=0.5):
+    def __init__(self, horizon: float = 0.5):
         self.times = deque()
         self.values = deque()
         self.horizon = horizon
 
-    def add(self, t, value):
+    def add(self, t: float, value: ArrayLike) -> None:
         value = np.asarray(value, float)
         if not np.all(np.isfinite(value)) or (self.times and t < self.times[-1]):
             return
@@ -325,7 +340,7 @@ class SampleHistory:
             self.times.popleft()
             self.values.popleft()
 
-    def at(self, t, tolerance=0.02):
+    def at(self, t: float, tolerance: float = 0.02) -> np.ndarray | None:
         """Linearly interpolated value at ``t`` (None when ``t`` is not covered)."""
         if not self.times or t < self.times[0] - tolerance or t > self.times[-1] + tolerance:
             return None
@@ -352,16 +367,17 @@ class LegCommand:
 class IsolationController:
     """Leg commands that keep the feed at its target while the upper platform vibrates."""
 
-    def __init__(self, geometry: GoughStewartGeometry, nominal_relative: tuple,
+    def __init__(self, geometry: GoughStewartGeometry,
+                 nominal_relative: tuple[ArrayLike, ArrayLike],
                  mode: str = 'predictive', lead: float = 0.005, trim_gain: float = 1.5,
-                 trim_limit: tuple = (0.03, math.radians(0.5)), lu_kp: float = 0.3,
+                 trim_limit: tuple[float, float] = (0.03, math.radians(0.5)), lu_kp: float = 0.3,
                  lu_ki: float = 40.0, lu_kd: float = 0.0, lu_delay_limit: float = 0.0,
                  stroke_margin: float = 0.005, dropout_timeout: float = 0.1,
                  process_noise: float = 20.0, process_noise_rotation: float = 10.0,
                  position_std: float = 0.001, rotation_std: float = math.radians(0.01),
-                 peak_gain_max: float = 4.0, vibration_band: tuple = (0.3, 2.0),
-                 slow_time: float = 1.0, chain=None, fuse: bool = True,
-                 without: frozenset = frozenset()):
+                 peak_gain_max: float = 4.0, vibration_band: tuple[float, float] = (0.3, 2.0),
+                 slow_time: float = 1.0, chain: FeedSupportChain | None = None,
+                 fuse: bool = True, without: Iterable[str] = frozenset()):
         if mode not in MODES:
             raise ValueError(f'unknown isolation mode {mode!r}')
         self.geometry = geometry
@@ -425,7 +441,8 @@ class IsolationController:
         self.fk_guess = (self.nominal_p, self.nominal_R)
 
     @classmethod
-    def from_config(cls, cfg, mode: str | None = None, without=()) -> 'IsolationController':
+    def from_config(cls, cfg: FastConfig, mode: str | None = None,
+                    without: Iterable[str] = ()) -> IsolationController:
         """Build from a validated :class:`~cable_robot_pkg.fast.configuration.FastConfig`
         (``mode`` None: the config's ``isolation.mode``; ``without``: ablation names)."""
         iso = cfg.raw['isolation']
@@ -444,11 +461,11 @@ class IsolationController:
                    without=frozenset(without))
 
     # ------------------------------------------------------------------ inputs
-    def set_target(self, t, position, rotation):
+    def set_target(self, t: float, position: ArrayLike, rotation: ArrayLike) -> None:
         """New feed target (map frame) valid at time ``t``."""
         self.targets.add(t, position, rotation)
 
-    def add_base(self, now, stamp, position, rotation):
+    def add_base(self, now: float, stamp: float, position: ArrayLike, rotation: ArrayLike) -> bool:
         """Tracked upper platform pose captured at ``stamp``, received at ``now``."""
         if self.base.add(stamp, position, rotation):
             self.last_base_arrival = now
@@ -471,15 +488,16 @@ class IsolationController:
             return True
         return False
 
-    def add_hinge_state(self, t, angles):
+    def add_hinge_state(self, t: float, angles: ArrayLike) -> None:
         """Orienting-mechanism encoder angles (alpha, beta) at time ``t``."""
         self.hinges.add(t, angles)
 
-    def add_leg_state(self, t, lengths):
+    def add_leg_state(self, t: float, lengths: ArrayLike) -> None:
         """Leg encoder lengths at time ``t``."""
         self.legs.add(t, lengths)
 
-    def add_trolley(self, now, stamp, position, rotation):
+    def add_trolley(self, now: float, stamp: float, position: ArrayLike,
+                    rotation: ArrayLike) -> bool:
         """Tracked trolley pose: with the hinge angles at ``stamp`` it is one more
         measurement of the upper platform (chain kinematics)."""
         if not self.fuse or self.chain is None or self.mode != 'predictive':
@@ -509,7 +527,7 @@ class IsolationController:
         return np.asarray(position) - R_b @ fk.position, R_b
 
     @property
-    def gain(self):
+    def gain(self) -> float:
         """Smallest compensation gain in use (1 = the whole predicted base motion)."""
         return float(self.gains.min())
 
@@ -520,7 +538,9 @@ class IsolationController:
         while self.history and stamp - self.history[0][0] > self.spectrum_window:
             self.history.popleft()
 
-    def base_spectra(self, min_span=4.0):
+    def base_spectra(
+            self, min_span: float = 4.0
+    ) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]] | None:
         """Measured power spectra of the base position and rotation (Hann-windowed, linearly
         detrended periodogram of the last ``spectrum_window`` s of base measurements), as
         ``((freqs, power_position), (freqs, power_rotation))``; None with less than
@@ -544,7 +564,7 @@ class IsolationController:
             out.append((freqs, np.sum(np.abs(X) ** 2, axis=1)))
         return tuple(out)
 
-    def schedule(self):
+    def schedule(self) -> bool:
         """Re-schedule the base predictor when the measured latency (prediction horizon),
         frame period or number of fused views has changed (:func:`schedule_predictor`).
 
@@ -579,7 +599,7 @@ class IsolationController:
             self.loop_peak[k] = peak
         return True
 
-    def add_feed(self, now, stamp, position, rotation):
+    def add_feed(self, now: float, stamp: float, position: ArrayLike, rotation: ArrayLike) -> bool:
         """Tracked feed pose: the PID (``lu``), the integral trim and a base view
         (``predictive``); ignored by ``cheng`` and without tracker feedback."""
         position = np.asarray(position, float)

@@ -10,10 +10,15 @@ no executor: several times cheaper than the graph, so sweeps and long causal tes
 (:func:`run_loop`); the graph (:func:`cable_robot_pkg.fast.scenario.run_graph`) remains the
 product and is what ``paramotion fast`` runs.
 """
+from __future__ import annotations
+
 import math
+import os
 from collections import deque
+from collections.abc import Iterable
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from cable_robot_pkg.fast.configuration import load_config, parse_without
 from cable_robot_pkg.fast.isolation import IsolationController
@@ -33,7 +38,7 @@ class TrackerModel:
     capture (stamp = capture time)."""
 
     def __init__(self, latency: float, noise_position: float, noise_orientation_deg: float,
-                 offset=(0.0, 0.0, 0.0), seed: int = 1):
+                 offset: ArrayLike = (0.0, 0.0, 0.0), seed: int = 1):
         self.latency = float(latency)
         self.sigma_p = float(noise_position)
         self.sigma_r = math.radians(noise_orientation_deg)
@@ -41,7 +46,7 @@ class TrackerModel:
         self.rng = np.random.default_rng(seed)
         self.queue = deque()
 
-    def capture(self, t: float, poses: dict) -> None:
+    def capture(self, t: float, poses: dict[str, tuple[np.ndarray, np.ndarray]]) -> None:
         """Capture ``{body: (p, R)}`` at ``t``."""
         for body, (p, R) in poses.items():
             dn = self.rng.normal(0.0, self.sigma_p, 3)
@@ -49,7 +54,7 @@ class TrackerModel:
             self.queue.append((t + self.latency, t, body, p + dn + self.offset,
                                matrix_from_rotvec(dr) @ R))
 
-    def release(self, now: float) -> list:
+    def release(self, now: float) -> list[tuple[float, str, np.ndarray, np.ndarray]]:
         """Frames due at ``now``: ``[(stamp, body, p, R)]``."""
         out = []
         while self.queue and self.queue[0][0] <= now + 1e-9:
@@ -58,10 +63,11 @@ class TrackerModel:
         return out
 
 
-def run_loop(duration: float, config=None, overrides=None, latency: float = 0.02,
-             mode: str | None = None, without=(), wind: float = 1.0, wind_seed=None,
-             tracker_offset=(0.0, 0.0, 0.0), tracker_seed: int = 1, settle: float = 3.0,
-             abort_mm: float = 2000.0) -> dict:
+def run_loop(duration: float, config: str | os.PathLike[str] | None = None,
+             overrides: dict | None = None, latency: float = 0.02, mode: str | None = None,
+             without: str | Iterable[str] = (), wind: float = 1.0, wind_seed: int | None = None,
+             tracker_offset: ArrayLike = (0.0, 0.0, 0.0), tracker_seed: int = 1,
+             settle: float = 3.0, abort_mm: float = 2000.0) -> dict:
     """Run the loops for ``duration`` sim seconds; returns the error series and RMS figures.
 
     ``config``/``overrides``: YAML path and dict merged over the defaults; ``mode`` None: the

@@ -23,14 +23,24 @@ Split between PyBullet and analytic models (chosen so that a 60 s run stays fast
 - **Wind analytically** (:mod:`cable_robot_pkg.fast.wind`): force and torque on the trolley.
 - Collisions are off (nothing touches anything); towers are static visual bodies.
 """
+from __future__ import annotations
+
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pybullet
+from numpy.typing import ArrayLike
 
 from cable_robot_pkg.fast.focal_surface import hinge_rotation
 from paramotion.gough_stewart import inverse_kinematics, jacobian
 from paramotion.rotations import quat_from_matrix
+
+if TYPE_CHECKING:
+    from pybullet_utils.bullet_client import BulletClient
+
+    from cable_robot_pkg.fast.configuration import FastConfig
+    from cable_robot_pkg.fast.wind import WindModel
 
 _EYE_Q = [0.0, 0.0, 0.0, 1.0]
 
@@ -42,7 +52,9 @@ def _matrix(q):
 class FeedSupportPlant:
     """Trolley + orienting mechanism + Gough-Stewart platform + cables + wind in one client."""
 
-    def __init__(self, cfg, bullet, wind=None, start_time=0.0, dt=None, solver_iterations=None):
+    def __init__(self, cfg: FastConfig, bullet: BulletClient, wind: WindModel | None = None,
+                 start_time: float = 0.0, dt: float | None = None,
+                 solver_iterations: int | None = None):
         self.cfg = cfg
         self.b = bullet
         self.wind = wind
@@ -257,23 +269,25 @@ class FeedSupportPlant:
             b.setCollisionFilterGroupMask(tower, -1, 0, 0)
 
     # ------------------------------------------------------------------ commands
-    def set_winch_command(self, unstretched, rates=None, stamp=None):
+    def set_winch_command(self, unstretched: ArrayLike, rates: ArrayLike | None = None,
+                          stamp: float | None = None) -> None:
         """Winch set-point: unstretched lengths valid at ``stamp`` (default now) moving at
         ``rates`` (a time-stamped trajectory point, held first-order)."""
         self.winch_cmd = np.asarray(unstretched, float).copy()
         self.winch_rate_cmd = np.zeros(self.cables.n) if rates is None else np.asarray(rates)
         self.winch_cmd_time = self.t if stamp is None else min(float(stamp), self.t)
 
-    def set_leg_command(self, lengths, rates=None, stamp=None):
+    def set_leg_command(self, lengths: ArrayLike, rates: ArrayLike | None = None,
+                        stamp: float | None = None) -> None:
         """Leg set-point: lengths valid at ``stamp`` (default now) moving at ``rates``."""
         self.leg_cmd = np.asarray(lengths, float).copy()
         self.leg_rate_cmd = np.zeros(6) if rates is None else np.asarray(rates, float)
         self.leg_cmd_time = self.t if stamp is None else min(float(stamp), self.t)
 
-    def set_hinge_command(self, alpha, beta):
+    def set_hinge_command(self, alpha: float, beta: float) -> None:
         self.hinge_cmd = np.array([alpha, beta], float)
 
-    def apply_commands(self, since):
+    def apply_commands(self, since: float) -> None:
         """Servo targets (first-order hold of position + velocity commands).
 
         The six leg servos are set in one ``setJointMotorControlArray`` call; the hinge servos
@@ -302,7 +316,7 @@ class FeedSupportPlant:
             self._hinge_sent = hinge
 
     # ------------------------------------------------------------------ stepping
-    def step(self):
+    def step(self) -> None:
         """Advance one physics step: winches, cable and wind wrenches, servos, PyBullet.
 
         This runs 1000 times per simulated second, so it calls the PyBullet module directly
@@ -337,28 +351,28 @@ class FeedSupportPlant:
         self.t += dt
 
     # ------------------------------------------------------------------ state
-    def trolley_pose(self):
+    def trolley_pose(self) -> tuple[np.ndarray, np.ndarray]:
         pos, q = self.b.getBasePositionAndOrientation(self.body)
         return np.array(pos), _matrix(q)
 
-    def trolley_velocity(self):
+    def trolley_velocity(self) -> tuple[np.ndarray, np.ndarray]:
         lin, ang = self.b.getBaseVelocity(self.body)
         return np.array(lin), np.array(ang)
 
-    def upper_pose(self):
+    def upper_pose(self) -> tuple[np.ndarray, np.ndarray]:
         """Upper platform centre and orientation (world)."""
         st = self.b.getLinkState(self.body, self.UPPER, computeForwardKinematics=True)
         R = _matrix(st[5])
         return np.array(st[4]) - self.chain.upper_offset * R[:, 2], R
 
-    def feed_pose(self):
+    def feed_pose(self) -> tuple[np.ndarray, np.ndarray]:
         pos, q = self.b.getBasePositionAndOrientation(self.feed)
         return np.array(pos), _matrix(q)
 
-    def hinge_angles(self):
+    def hinge_angles(self) -> np.ndarray:
         return np.array([self.b.getJointState(self.body, j)[0] for j in (self.RING, self.UPPER)])
 
-    def leg_lengths(self):
+    def leg_lengths(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Leg lengths from the prismatic joints (the actuators' encoders), rates and forces."""
         states = self.b.getJointStates(self.body, self.ROD)
         q = np.array([s[0] for s in states]) + self.nominal_lengths
@@ -366,19 +380,19 @@ class FeedSupportPlant:
         f = self.leg_force.copy() if self.force_drive else np.array([s[3] for s in states])
         return q, v, f
 
-    def leg_lengths_geometric(self):
+    def leg_lengths_geometric(self) -> np.ndarray:
         """Leg lengths between the joint centres of the two platforms (for checking)."""
         up, Ru = self.upper_pose()
         fp, Rf = self.feed_pose()
         rel_p = Ru.T @ (fp - up)
         return inverse_kinematics(self.geom, rel_p, Ru.T @ Rf)
 
-    def nominal_upper(self, alpha, beta):
+    def nominal_upper(self, alpha: float, beta: float) -> np.ndarray:
         """Upper platform rotation relative to a level trolley for hinge angles."""
         return hinge_rotation(alpha, beta)
 
 
-def make_client():
+def make_client() -> BulletClient:
     """A headless PyBullet client (DIRECT) with z-up gravity."""
     from pybullet_utils.bullet_client import BulletClient
     client = BulletClient(connection_mode=pybullet.DIRECT)
@@ -386,7 +400,7 @@ def make_client():
     return client
 
 
-def angle_deg(R_a, R_b):
+def angle_deg(R_a: ArrayLike, R_b: ArrayLike) -> float:
     """Angle (deg) of the rotation between two orientations."""
     c = (np.trace(np.asarray(R_a).T @ np.asarray(R_b)) - 1.0) / 2.0
     return math.degrees(math.acos(max(-1.0, min(1.0, c))))
