@@ -2,14 +2,19 @@
 
 Topic names live here too, so the nodes, the scenario and the tests agree on them.
 """
+from __future__ import annotations
+
 import copy
 import os
+from collections.abc import Sequence
 
 import numpy as np
+from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped
+from numpy.typing import ArrayLike
 from sensor_msgs.msg import JointState
 
-from cable_robot_pkg.fast.configuration import DEFAULT_CONFIG, load_config
+from cable_robot_pkg.fast.configuration import DEFAULT_CONFIG, FastConfig, load_config
 from paramotion.errors import UserError
 from paramotion.rotations import matrix_from_quat, quat_from_matrix
 
@@ -45,7 +50,7 @@ def _file_key(path):
     return (os.path.realpath(path), st.st_mtime_ns, st.st_size)
 
 
-def config_from_param(path):
+def config_from_param(path: str) -> FastConfig:
     """Validated config from a node's ``config`` parameter ('' = the packaged default).
 
     Validation (every track target's reachability) takes most of a node's start-up, and a
@@ -63,12 +68,13 @@ def config_from_param(path):
     return copy.deepcopy(_CONFIG_CACHE[key])
 
 
-def stamp_seconds(stamp):
+def stamp_seconds(stamp: Time) -> float:
     """builtin_interfaces/Time -> float seconds."""
     return stamp.sec + stamp.nanosec * 1e-9
 
 
-def pose_msg(stamp, frame_id, position, rotation):
+def pose_msg(stamp: Time, frame_id: str, position: ArrayLike,
+             rotation: ArrayLike) -> PoseStamped:
     """PoseStamped from a position (3,) and rotation matrix (3, 3)."""
     msg = PoseStamped()
     msg.header.stamp = stamp
@@ -81,7 +87,7 @@ def pose_msg(stamp, frame_id, position, rotation):
     return msg
 
 
-def pose_from_msg(msg):
+def pose_from_msg(msg: PoseStamped) -> tuple[np.ndarray, np.ndarray]:
     """(position (3,), rotation (3, 3)) of a PoseStamped; NaN-safe (returns NaN arrays)."""
     p = msg.pose.position
     o = msg.pose.orientation
@@ -92,7 +98,9 @@ def pose_from_msg(msg):
     return position, matrix_from_quat(q)
 
 
-def joint_state_msg(stamp, names, position, velocity=None, effort=None):
+def joint_state_msg(stamp: Time, names: Sequence[str], position: ArrayLike,
+                    velocity: ArrayLike | None = None,
+                    effort: ArrayLike | None = None) -> JointState:
     """sensor_msgs/JointState with float lists."""
     msg = JointState()
     msg.header.stamp = stamp
@@ -105,7 +113,8 @@ def joint_state_msg(stamp, names, position, velocity=None, effort=None):
     return msg
 
 
-def joint_vector(msg, names, field='position'):
+def joint_vector(msg: JointState, names: Sequence[str],
+                 field: str = 'position') -> np.ndarray | None:
     """Values of ``field`` in ``names`` order, or None if the message does not match."""
     values = getattr(msg, field)
     if len(values) != len(msg.name):
@@ -116,7 +125,7 @@ def joint_vector(msg, names, field='position'):
     return np.array([values[index[n]] for n in names], float)
 
 
-def check_config_param(path):
+def check_config_param(path: str) -> str | None:
     """One-line reason if the ``config`` parameter does not load, else None."""
     try:
         config_from_param(path)
