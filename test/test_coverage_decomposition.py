@@ -17,6 +17,8 @@ from coverage_pkg.planner import CoveragePlanner, PlannerConfig
 from coverage_pkg.sonar import SonarRing
 from coverage_pkg.world import world_from_dict
 
+pytestmark = pytest.mark.slow  # whole coverage runs of hand-made worlds
+
 DELTA = 2.0
 # 16 x 12 room, one 4 x 2 obstacle in the middle: VR is a ring around the obstacle (one vast
 # cell); NR is the band along the walls and the band around the obstacle (two narrow cells,

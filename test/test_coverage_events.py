@@ -2,11 +2,15 @@
 (coverage_pkg/event_check.py: 2880 rays, a local search) than the planner's 16 sonar cones."""
 import math
 
+import pytest
+
 from coverage_pkg.event_check import check_events
 from coverage_pkg.kinematic import run_kinematic
 from coverage_pkg.planner import PlannerConfig
 from coverage_pkg.world import world_from_dict
 from coverage_pkg.worldgen import generate_world
+
+pytestmark = pytest.mark.slow  # whole coverage runs checked against the true world
 
 # Two 8 x 8 rooms joined by a 4 m corridor 1.5 m wide (as in test_coverage_decomposition).
 TWO_ROOMS = {'name': 'two_rooms_corridor',

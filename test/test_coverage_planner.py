@@ -11,6 +11,8 @@ from coverage_pkg.planner import CoveragePlanner, PlannerConfig
 from coverage_pkg.sonar import SonarRing, simulate_ring
 from coverage_pkg.world import random_world, world_from_dict
 
+pytestmark = pytest.mark.slow  # whole coverage runs of generated worlds
+
 SMALL = {'name': 'small', 'boundary': [[0, 0], [9, 0], [9, 6], [0, 6]],
          'obstacles': [[[4, 2.5], [5.5, 2.5], [5.5, 3.5], [4, 3.5]]], 'start': [1.0, 1.0]}
 

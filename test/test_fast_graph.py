@@ -19,6 +19,8 @@ from cable_robot_pkg.fast.scenario import bag_series, evaluate, evaluate_run, ru
 from paramotion.bag.reader import deserialize, read_messages
 from paramotion.gough_stewart import forward_kinematics
 
+pytestmark = pytest.mark.slow  # the FAST graph run for seconds of sim time
+
 SAMPLE_DIR = BAGS / 'fast_sample'
 SAMPLE = SAMPLE_DIR / 'bag'
 

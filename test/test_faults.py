@@ -8,10 +8,13 @@ import threading
 import time
 from contextlib import contextmanager
 
+import pytest
 from launch_helpers import Watcher
 
 from paramotion.launch import Launcher
 from paramotion.launch_xml import load
+
+pytestmark = pytest.mark.slow  # faults injected into graphs of several processes
 
 
 class Log:
