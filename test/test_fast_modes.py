@@ -4,19 +4,17 @@ The kinematic tests run the isolation controller alone on ideal legs (feed = bas
 under a sinusoidally moving base; the slow ones run the ROS-free lock-step loop
 (:func:`cable_robot_pkg.fast.loop.run_loop`: PyBullet plant, tracker model, both controllers).
 """
-import math
 
 import numpy as np
 import pytest
 import yaml
+from fast_kinematic import kinematic_isolation_run
 
 from cable_robot_pkg.fast.configuration import ABLATIONS, load_config, parse_without
 from cable_robot_pkg.fast.isolation import IsolationController
 from cable_robot_pkg.fast.loop import run_loop
 from paramotion.cli import main as cli_main
 from paramotion.errors import UserError
-from paramotion.gough_stewart import forward_kinematics
-from paramotion.rotations import matrix_from_rotvec
 
 #: Lu's direct terminal feedback (lu_ki = 40/s) is stable up to this tracker latency and
 #: unstable from LU_UNSTABLE_FROM (docs/fast.md, docs/results/fast.md).
@@ -34,34 +32,7 @@ def cfg():
 def kinematic_run(cfg, mode, latency, duration=6.0, without=(), **attrs):
     """Feed RMS error (m) after 2 s and the stroke-clip count of the isolation controller on
     ideal legs; base moving 40/30 mm and 0.3 deg; tracker noise-free, ``latency`` s late."""
-    ctl = IsolationController.from_config(cfg, mode=mode, without=without)
-    for key, value in attrs.items():
-        setattr(ctl, key, value)
-    feed_p, feed_R = cfg.track.pose(0.0)
-    _, _, up0, upR0 = cfg.chain.coarse_targets(feed_p, feed_R)
-    dt, n_lat = 0.005, int(round(latency / 0.005))
-    legs = ctl.nominal_lengths.copy()
-    guess = cfg.chain.nominal_relative_pose()
-    hist, errs = [], []
-    for k in range(int(duration / dt)):
-        t = k * dt
-        pb = up0 + np.array([0.04 * math.sin(2 * math.pi * 0.9 * t),
-                             0.03 * math.sin(2 * math.pi * 0.6 * t + 1), 0.0])
-        Rb = upR0 @ matrix_from_rotvec([0.005 * math.sin(2 * math.pi * 0.7 * t), 0, 0])
-        fk = forward_kinematics(cfg.geometry, legs, *guess)
-        guess = (fk.position, fk.rotation)
-        fp, fR = pb + Rb @ fk.position, Rb @ fk.rotation
-        hist.append((t, pb, Rb, fp, fR))
-        ctl.add_leg_state(t, legs)
-        if k >= n_lat:
-            ts, pbm, Rbm, fpm, fRm = hist[k - n_lat]
-            ctl.add_base(t, ts, pbm, Rbm)
-            ctl.add_feed(t, ts, fpm, fRm)
-        ctl.set_target(t, feed_p, feed_R)
-        legs = ctl.update(t).lengths
-        if t >= 2.0:
-            errs.append(np.linalg.norm(fp - feed_p))
-    return math.sqrt(np.mean(np.square(errs))), ctl.clip_count
+    return kinematic_isolation_run(cfg, mode, latency, duration, 2.0, without=without, **attrs)
 
 
 def test_lu_delay_instability_appears_beyond_the_documented_latency(cfg):

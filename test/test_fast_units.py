@@ -3,6 +3,7 @@ import math
 
 import numpy as np
 import pytest
+from fast_kinematic import kinematic_isolation_run
 
 from cable_robot_pkg.fast.cables import Cable, CableSystem, InfeasibleTensionError, gravity_wrench
 from cable_robot_pkg.fast.configuration import load_config
@@ -255,37 +256,10 @@ def test_pose_predictor_compensates_latency():
 
 
 def _kinematic_isolation_run(cfg, mode, latency, duration=8.0):
-    """'Linear plant' of the isolator: ideal legs (feed = base + FK(legs)) on a base moving
-    sinusoidally; tracker noise-free with the given latency. Returns feed RMS error (m)."""
-    ctl = IsolationController.from_config(cfg, mode=mode)
-    g = cfg.geometry
-    feed_p, feed_R = cfg.track.pose(0.0)
-    _, _, up0, upR0 = cfg.chain.coarse_targets(feed_p, feed_R)
-    dt, n_lat = 0.005, int(round(latency / 0.005))
-    legs = ctl.nominal_lengths.copy()
-    hist, errs = [], []
-    guess = cfg.chain.nominal_relative_pose()
-    for k in range(int(duration / dt)):
-        t = k * dt
-        pb = up0 + np.array([0.04 * math.sin(2 * math.pi * 0.9 * t),
-                             0.03 * math.sin(2 * math.pi * 0.6 * t + 1), 0.0])
-        Rb = upR0 @ matrix_from_rotvec([0.005 * math.sin(2 * math.pi * 0.7 * t), 0, 0])
-        fk = forward_kinematics(g, legs, *guess)
-        guess = (fk.position, fk.rotation)
-        fp, fR = pb + Rb @ fk.position, Rb @ fk.rotation
-        hist.append((t, pb, Rb, fp, fR))
-        ctl.add_leg_state(t, legs)
-        if k >= n_lat:
-            ts, pbm, Rbm, fpm, fRm = hist[k - n_lat]
-            ctl.add_base(t, ts, pbm, Rbm)
-            ctl.add_feed(t, ts, fpm, fRm)
-        ctl.set_target(t, feed_p, feed_R)
-        legs = ctl.update(t).lengths
-        if t > 3.0:
-            errs.append(np.linalg.norm(fp - feed_p))
-        if not np.all(np.isfinite(legs)) or errs and errs[-1] > 1.0:
-            return math.inf
-    return math.sqrt(np.mean(np.square(errs)))
+    """'Linear plant' of the isolator (test/fast_kinematic.py); feed RMS error (m) after 3 s,
+    infinite if the run diverges."""
+    return kinematic_isolation_run(cfg, mode, latency, duration, 3.0,
+                                   stop_on_divergence=True)[0]
 
 
 def test_isolation_controller_on_kinematic_plant(cfg):
