@@ -126,13 +126,16 @@ def test_respawn_restarts_a_dying_node_and_ctrl_c_to_the_launcher_stops_everythi
     path = _launch_file(
         tmp_path, '  <node pkg="paramotion" exec="smoke_controller" name="steady"/>\n'
         '  <node pkg="paramotion" exec="smoke_range_sensor" name="flaky" respawn="true" '
-        'respawn_delay="2.0">\n    <param name="rate" value="-5.0"/>\n  </node>')
+        'respawn_delay="3.0">\n    <param name="rate" value="-5.0"/>\n  </node>')
 
     def flaky_between_lives(out):
-        """The flaky node has died as often as it started: it waits to respawn (Ctrl-C then
-        does not interrupt a process in the middle of its imports)."""
-        return out.count('[INFO] [smoke_range_sensor-2]: process started') == \
-            out.count('[ERROR] [smoke_range_sensor-2]: process has died')
+        """The flaky node has died as often as it started and its respawn is not yet announced:
+        it waits out its respawn delay (Ctrl-C then does not interrupt a process in the middle
+        of its imports; 'respawning' is printed just before the next start)."""
+        started = out.count('[INFO] [smoke_range_sensor-2]: process started')
+        died = out.count('[ERROR] [smoke_range_sensor-2]: process has died')
+        respawned = out.count('[INFO] [smoke_range_sensor-2]: respawning')
+        return started == died == respawned + 1
 
     with launched([path], tmp_path, watcher=False) as (launch, _):
         assert wait_until(lambda: launch.poll() is not None or (
