@@ -267,6 +267,7 @@ class PaperPlanner:
         self.update_times = []
         self.last = {}                             # no decomposed map (the node's markers)
         self._cusp_dir = None                      # bearing into the narrow cell, this cusp
+        self._cusp_dirs = {}                       # cusp (x, y) of an edge -> that bearing
 
     # ------------------------------------------------------------------ inputs
 
@@ -331,7 +332,10 @@ class PaperPlanner:
                 abs(math.remainder(bearing - last, 2 * math.pi)) > math.radians(45):
             xy = gvdmod.cusp_from_ring(self.pose[:2], self.ranges, self.angles, self.det)
         if xy is not None:
-            self._cusp_dir = self._gvd_direction()
+            head = self.task.get('heading') if self.mode == 'gvd' else None
+            # traced along its GVD edge: back along the trace is into the narrow cell
+            self._cusp_dir = self._gvd_direction() if head is None else \
+                math.atan2(-head[1], -head[0])
             self._on_event(t, 'cusp', xy, 'D = delta where two closest obstacles meet')
             self._cusp_dir = None
 
@@ -371,9 +375,18 @@ class PaperPlanner:
         if kind == 'critical':
             return False
         if kind == 'cusp' and n is not None and n.kind == 'vast':
-            return any(math.dist(c, xy) < near for v, _, c in self.edges
-                       if self.same_node(v) == n.id)
+            return any(math.dist(c, xy) < near and self._same_edge(c, self._cusp_dir)
+                       for v, _, c in self.edges if self.same_node(v) == n.id)
         return any(e[1] == kind and math.dist(e[2:4], xy) < near for e in self.events)
+
+    def _same_edge(self, c, into):
+        """The cusp ``c`` lies on the GVD edge leaving along ``into`` (bearing into its narrow
+        cell; unknown either way: the same). A small vast cell's cusps lie within a step of
+        one another, each on its own edge."""
+        known = self._cusp_dirs.get((round(c[0], 3), round(c[1], 3)))
+        if known is None or into is None:
+            return True
+        return abs(math.remainder(known - into, 2 * math.pi)) < math.radians(30)
 
     def _record(self, t, kind, xy, detail):
         self.events.append((round(float(t), 3), kind, round(float(xy[0]), 3),
@@ -405,6 +418,7 @@ class PaperPlanner:
             return
         new = self.create_node('narrow' if n.kind == 'vast' else 'vast', xy, idx)
         self.edges.append((n.id, new.id, xy) if n.kind == 'vast' else (new.id, n.id, xy))
+        self._note_dir(xy)
         if new.kind == 'narrow':
             into = None if self._cusp_dir is None else (math.cos(self._cusp_dir),
                                                         math.sin(self._cusp_dir))
@@ -488,7 +502,12 @@ class PaperPlanner:
                math.dist(c, xy) < self.cfg.same_event for a, b, c in self.edges):
             return
         self.edges.append((v, w, (float(xy[0]), float(xy[1]))))
+        self._note_dir(xy)
         self._record(self.t_sweep, 'cusp_joins', xy, detail)
+
+    def _note_dir(self, xy):
+        if self._cusp_dir is not None:
+            self._cusp_dirs[(round(float(xy[0]), 3), round(float(xy[1]), 3))] = self._cusp_dir
 
     def find_uncovered_node(self) -> Node | None:
         """FindUncoveredNode(N): the uncovered node nearest along the traced paths."""

@@ -1,0 +1,87 @@
+"""Measure the paper planner on generated worlds (issue 28's targets), ROS-free.
+
+``python -m coverage_pkg.paper_measure --seeds 100-105 [--jobs 2] [--png DIR]`` generates the
+worlds of :mod:`coverage_pkg.worldgen` for the seeds, covers each with the paper planner
+(:mod:`coverage_pkg.algorithm1`) in :func:`coverage_pkg.kinematic.run_kinematic`, and prints
+per world and overall: the covered share of CVS, path / lower bound |CVS| / (2 delta), the
+share of the path driven by lap, boundary and GVD primitives (not transit), and the planner
+update time per sweep (median and 99th percentile). ``--png`` draws each run.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+from coverage_pkg.algorithm1 import PaperConfig
+
+
+def parse_seeds(text: str) -> list[int]:
+    """Seeds from '100-105' or '100,103,200-202'."""
+    out = []
+    for part in text.split(','):
+        a, _, b = part.partition('-')
+        out += list(range(int(a), int(b or a) + 1))
+    return out
+
+
+def measure_world(seed: int, png_dir: str | None = None,
+                  max_time: float = 3000.0) -> dict[str, object]:
+    """One generated world covered by the paper planner; the measured figures."""
+    from coverage_pkg.kinematic import run_kinematic
+    from coverage_pkg.world import load_world
+    from coverage_pkg.worldgen import write_worlds
+    with tempfile.TemporaryDirectory() as tmp:
+        world = load_world(write_worlds(tmp, 1, seed=seed)[0])
+    r = run_kinematic(world, PaperConfig(), max_time=max_time)
+    planner = r['planner']
+    lengths = planner.primitive_lengths()
+    total = sum(lengths.values())
+    ut = np.asarray(r['update_times']) * 1e3
+    row = {'world': world.name, 'state': r['state'], 'covered': r['covered_fraction'],
+           'ratio': r['path_length'] / r['lower_bound'],
+           'primitive': 1.0 - lengths.get('transit', 0.0) / total if total else 0.0,
+           'median_ms': float(np.median(ut)), 'p99_ms': float(np.percentile(ut, 99)),
+           'sim': r['sim_time'], 'wall': r['wall_time']}
+    if png_dir:
+        from coverage_pkg.figure import render_coverage
+        Path(png_dir).mkdir(parents=True, exist_ok=True)
+        render_coverage(Path(png_dir) / f'{world.name}.png', world, np.asarray(r['path']),
+                        planner.to_dict(), None, r['accumulator'].uncovered_points(),
+                        title=f"{world.name}: {100 * row['covered']:.1f} %")
+    return row
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument('--seeds', default='100-105', help="e.g. '100-105' or '100,300-305'")
+    ap.add_argument('--jobs', type=int, default=1, help='worlds run in parallel')
+    ap.add_argument('--png', default=None, help='directory for one picture per world')
+    ap.add_argument('--max-sim-time', type=float, default=3000.0)
+    args = ap.parse_args(argv)
+    seeds = parse_seeds(args.seeds)
+    with ProcessPoolExecutor(max(1, args.jobs)) as ex:
+        rows = list(ex.map(measure_world, seeds, [args.png] * len(seeds),
+                           [args.max_sim_time] * len(seeds)))
+    print('| world | state | covered | path/bound | primitives | median ms | p99 ms | sim s |')
+    print('|---|---|---|---|---|---|---|---|')
+    for r in rows:
+        print(f"| {r['world']} | {r['state']} | {100 * r['covered']:.2f} % | {r['ratio']:.2f} | "
+              f"{100 * r['primitive']:.1f} % | {r['median_ms']:.2f} | {r['p99_ms']:.2f} | "
+              f"{r['sim']:.0f} |")
+    cov = [r['covered'] for r in rows]
+    print(f"| mean ({len(rows)}) | - | {100 * np.mean(cov):.2f} % (min {100 * min(cov):.2f}) | "
+          f"{np.mean([r['ratio'] for r in rows]):.2f} | "
+          f"{100 * np.mean([r['primitive'] for r in rows]):.1f} % | "
+          f"{np.median([r['median_ms'] for r in rows]):.2f} | "
+          f"{max(r['p99_ms'] for r in rows):.2f} | - |")
+    sys.stdout.flush()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
