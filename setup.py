@@ -31,6 +31,7 @@ NODES = [
     'fast_trajectory = cable_robot_pkg.fast.feed_trajectory_node:main',
     'fast_cable_controller = cable_robot_pkg.fast.cable_pid_node:main',
     'fast_isolation_controller = cable_robot_pkg.fast.isolation_node:main',
+    'fast_control_container = cable_robot_pkg.fast.control_container_node:main',
     # cable_robot_pkg workspace (issue 6)
     'workspace_monitor = cable_robot_pkg.cdrpm.workspace_monitor_node:main',
     # voronoi_pkg: Gough-Stewart simplified Voronoi planner (issue 7)

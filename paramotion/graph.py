@@ -86,21 +86,26 @@ def node_executor_kind():
 def spin_node(node, kind=None):
     """Spin ``node`` (its own process) until its context shuts down.
 
-    ``single_threaded`` (default) is ``rclpy.spin(node)``. ``events`` runs it on rclpy's
-    ``EventsExecutor`` (less CPU per message; a callback's exception is also logged by it at
-    FATAL level before ``run_node`` sees it, shutdown races included); its ``spin()`` waits in C++
-    without returning to Python, so a signal's Python handler would never run: it is spun in
-    ``spin_once`` slices of 0.1 s instead, which run every event as it arrives and let SIGINT
-    and SIGTERM stop the node.
+    A component container (:class:`paramotion.container.ComponentContainer`) is spun together
+    with its ``components`` on the same executor. ``single_threaded`` (default) is
+    ``rclpy.spin(node)`` (a ``SingleThreadedExecutor`` over all the nodes for a container).
+    ``events`` runs them on rclpy's ``EventsExecutor`` (less CPU per message; a callback's
+    exception is also logged by it at FATAL level before ``run_node`` sees it, shutdown races
+    included); its ``spin()`` waits in C++ without returning to Python, so a signal's Python
+    handler would never run: it is spun in ``spin_once`` slices of 0.1 s instead, which run
+    every event as it arrives and let SIGINT and SIGTERM stop the node.
     """
     kind = kind or node_executor_kind()
-    if kind == 'single_threaded':
+    nodes = [node, *getattr(node, 'components', ())]
+    if kind == 'single_threaded' and len(nodes) == 1:
         rclpy.spin(node)
         return
     executor = make_executor(kind, node.context)
-    executor.add_node(node)
+    for each in nodes:
+        executor.add_node(each)
+    timeout = 0.1 if kind == 'events' else None
     while node.context.ok():
-        executor.spin_once(timeout_sec=0.1)
+        executor.spin_once(timeout_sec=timeout)
 
 
 def private_domain_id():
@@ -194,8 +199,10 @@ class Graph:
         if namespace:
             kwargs['namespace'] = namespace
         node = node_cls(**kwargs)
-        self.nodes.append(node)
-        self.executor.add_node(node)
+        # A component container's nodes join this graph's executor after it, in its order.
+        for each in (node, *getattr(node, 'components', ())):
+            self.nodes.append(each)
+            self.executor.add_node(each)
         return node
 
     def record(self, bag_dir, topics, flush_period=1.0):
@@ -352,12 +359,14 @@ class Graph:
 
     def shutdown(self):
         """Destroy every node (recorders close their bags), the executor and the context."""
+        owned = {id(c) for node in self.nodes for c in getattr(node, 'components', ())}
         for node in reversed(self.nodes):
             try:
                 self.executor.remove_node(node)
             except Exception:
                 pass
-            node.destroy_node()
+            if id(node) not in owned:     # a container destroys its own components
+                node.destroy_node()
         self.nodes.clear()
         self.executor.shutdown()
         rclpy.try_shutdown(context=self.context)

@@ -246,10 +246,13 @@ def _run_node(node_cls, args, signals):
         # A node on sim time in its own process warns once if its simulator stops.
         from paramotion.clock_watchdog import attach
         watchdog = attach(node)
-        waker = ShutdownWaker(node)
+        from paramotion.graph import node_executor_kind, spin_node  # $PARAMOTION_EXECUTOR
+        kind = node_executor_kind()
+        # The events executor has no guard conditions; it is spun in 0.1 s slices that check
+        # the context, so it needs no waker.
+        waker = ShutdownWaker(node) if kind == 'single_threaded' else None
         signals.spinning()
-        from paramotion.graph import spin_node  # the executor: $PARAMOTION_EXECUTOR
-        spin_node(node)
+        spin_node(node, kind)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (RCLError, RuntimeError):

@@ -52,8 +52,9 @@ def _process_env(executor: str, domain_id: int) -> dict:
 def _stop(procs: dict, timeout: float = 20.0) -> dict:
     """SIGINT every process, reap each, return ``{label: (exit code, cpu seconds)}``."""
     for proc in procs.values():
-        if proc.poll() is None:
-            proc.send_signal(signal.SIGINT)
+        # os.kill, not Popen.send_signal, which would reap a process that already exited
+        # (os.wait4 below then finds no child and loses its rusage).
+        os.kill(proc.pid, signal.SIGINT)
     out = {}
     end = time.monotonic() + timeout
     for label, proc in procs.items():
@@ -106,13 +107,17 @@ def bench_processes(wall_s: float = 40.0, real_time_factor: float = 1.0,
             wall = time.monotonic() - start
             for log in logs:
                 log.close()
+        failed = {label: (Path(tmp) / f'{label}.log').read_text(errors='replace')[-600:]
+                  for label, (code, _) in exits.items() if code != 0}
         load = os.getloadavg()[0]
         cfg = load_config()
         series = bag_series(bag)
         sim_time = float(series['feed']['t'][-1]) if len(series['feed']['t']) else 0.0
         if sim_time < settle + 1.0:
             raise RuntimeError(f'FAST across processes reached only {sim_time:.1f} s of sim '
-                               f'time in {wall:.0f} s of wall time (settling takes {settle} s)')
+                               f'time in {wall:.0f} s of wall time (settling takes {settle} s)'
+                               + ''.join(f'; {k} exited {exits[k][0]}: {v!r}'
+                                         for k, v in failed.items()))
         result, _ = evaluate(series, settle, cfg.raw['cables']['tension_max'], cfg.geometry)
     return {
         'executor': executor, 'real_time_factor': float(real_time_factor),
