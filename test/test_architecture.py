@@ -1,5 +1,6 @@
 """Architecture rule: the algorithm modules (each paper's math) import no rclpy."""
 import ast
+import functools
 import subprocess
 import sys
 from pathlib import Path
@@ -28,6 +29,7 @@ ALGORITHMS = [
 ]
 
 
+@pytest.mark.slow            # a fresh interpreter imports every algorithm module
 def test_algorithm_modules_do_not_import_rclpy():
     code = ('import sys, importlib\n'
             f'for m in {ALGORITHMS!r}:\n'
@@ -48,8 +50,14 @@ ROS_SIDE = ('_node', '.scenario', '.cli', '.bench', '.sweep', '.demo', '.launch'
             '.ros_messages', '.qos_yaml', '.reader', '.shutdown')
 
 
+@functools.cache
+def _tree(path):
+    """The parsed source of ``path`` (several checks walk the same files)."""
+    return ast.parse(path.read_text(), str(path))
+
+
 def _imports_rclpy(path):
-    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+    for node in ast.walk(_tree(path)):
         if isinstance(node, ast.Import):
             names = [a.name for a in node.names]
         elif isinstance(node, ast.ImportFrom):
@@ -85,7 +93,7 @@ ROBOT_PACKAGES = ('coverage_pkg', 'climber_pkg', 'cable_robot_pkg', 'voronoi_pkg
 
 
 def _imported_modules(path):
-    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+    for node in ast.walk(_tree(path)):
         if isinstance(node, ast.Import):
             yield from (a.name for a in node.names)
         elif isinstance(node, ast.ImportFrom) and node.level == 0:
@@ -181,7 +189,7 @@ def _untyped_public_functions(path):
                     out.append(f'{path.relative_to(REPO)}:{node.lineno} {prefix}{node.name} '
                                f'({", ".join(missing)})')
 
-    visit(ast.parse(path.read_text(), str(path)).body, '')
+    visit(_tree(path).body, '')
     return out
 
 

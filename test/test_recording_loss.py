@@ -10,8 +10,12 @@ import time
 from collections import Counter
 from pathlib import Path
 
+import pytest
+
 from paramotion.bag.reader import bag_info, read_messages
 from paramotion.launch import NodeProcess, wait_until
+
+pytestmark = pytest.mark.slow  # recorded coverage runs, one of them over several processes
 
 WORLD = Path(__file__).resolve().parents[1] / 'coverage_pkg' / 'worlds' / 'two_rooms.json'
 

@@ -298,6 +298,7 @@ def test_fields_match_pointwise_rho():
     np.testing.assert_allclose(f.rho[1], model.rho(q), rtol=1e-9, atol=1e-3 * model.free_tol)
 
 
+@pytest.mark.slow            # the paper query again, with a planner of its own
 def test_paper_query_in_the_exact_fig3_domain(tmp_path):
     """Fig. 3's region, phi in [-pi/2, pi/2] (not periodic): the path stays inside it."""
     scene = tmp_path / 'fig3.json'

@@ -156,17 +156,19 @@ def test_contains_box_matches_brute_force():
     assert not ws.contains_box(np.ones((6, 7, 5), bool), axes, [0.7, 0.1, 0.1])  # too long
 
 
-def test_wrench_closure_null_space_test_matches_lp():
+@pytest.mark.parametrize('poses', [24, pytest.param(120, marks=pytest.mark.slow)])
+def test_wrench_closure_null_space_test_matches_lp(poses):
+    """``poses`` random poses per description, each also decided by the LP (the slow part)."""
     rng = np.random.default_rng(4)
     seen = set()
     for name in ('kntu_neuron', 'kntu_neuron_home', 'kntu_pinwheel', 'kntu_tetra_cross',
                  'kntu_uncrossed'):
         desc = load_description(CONFIG_DIR / f'{name}.yaml')
-        pos = rng.uniform(-0.8, 0.8, (120, 3)) * [1, 2, 1]
-        rots = rotation_matrix(*rng.uniform(-0.6, 0.6, (3, 120)))
+        pos = rng.uniform(-0.8, 0.8, (poses, 3)) * [1, 2, 1]
+        rots = rotation_matrix(*rng.uniform(-0.6, 0.6, (3, poses)))
         closed, margin = wrench_closure(desc, pos, rots)
         mats = structure_matrix(desc, pos, rots)
-        for k in range(120):
+        for k in range(poses):
             lp_closed, _ = wrench_closed_lp(mats[k])
             assert lp_closed == closed[k], (name, k, margin[k])
         seen.update(closed.tolist())
@@ -266,6 +268,7 @@ def test_workpiece_study_reduces_the_workspace(neuron):
     assert gap is not None and gap > 0
 
 
+@pytest.mark.slow            # the whole command with its figure
 def test_cli_cow_writes_json_and_png(tmp_path, capsys):
     out = tmp_path / 'cow'
     code = cli_main(['workspace', 'cow', '--rot', '30', '30', '10', '--step', '0.1',
@@ -307,6 +310,7 @@ def test_cli_table2_prints_paper_beside_ours(capsys):
     assert 'fitted to Table II and the TOW box' in text
 
 
+@pytest.mark.slow            # scores the pairings on a grid: seconds
 def test_corner_search_finds_the_shipped_pairings():
     from cable_robot_pkg.cdrpm import arrangements as arr
     pinwheel = arr.pairing_of(load_description(CONFIG_DIR / 'kntu_pinwheel.yaml'))
@@ -377,6 +381,7 @@ def test_home_variant_is_wrench_closed_at_every_home_orientation():
     assert not arr.home_check(load_description(), orientations)[0]
 
 
+@pytest.mark.slow            # the identification pipeline end to end
 def test_table2_search_on_a_coarse_pitch():
     """The identification pipeline on a 1 m pitch with loose tolerances and a small box: the
     counts only shrink stage by stage, every kept row meets the stated criteria, best fit
@@ -401,6 +406,7 @@ def test_table2_search_on_a_coarse_pitch():
     assert cli_main(['workspace', 'arrangements', '--corners', '--table2']) == 2
 
 
+@pytest.mark.slow            # the edge search end to end
 def test_edge_search_on_a_coarse_pitch():
     """A 1 m pitch (corners and edge midpoints) runs in seconds and ranks consistently."""
     from cable_robot_pkg.cdrpm import arrangements as arr

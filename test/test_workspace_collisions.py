@@ -90,9 +90,11 @@ def _random_pairs(rng, count):
     return p0, d1, q0, d2
 
 
-def test_segment_distance_matches_exact_arithmetic_and_bvls():
+@pytest.mark.parametrize('pairs', [200, pytest.param(800, marks=pytest.mark.slow)])
+def test_segment_distance_matches_exact_arithmetic_and_bvls(pairs):
+    """``pairs`` pairs of every kind (exact arithmetic per pair is the slow part)."""
     rng = np.random.default_rng(1234)
-    p0, d1, q0, d2 = _random_pairs(rng, 800)
+    p0, d1, q0, d2 = _random_pairs(rng, pairs)
     dist, s, t = col.segment_distance(p0, d1, q0, d2)
     assert np.all((s >= 0) & (s <= 1) & (t >= 0) & (t <= 1))
     # The reported closest points realise the reported distance.
@@ -166,13 +168,21 @@ def _brute_flags(desc, positions, rot):
 NEURON_FLAGS = col.CABLE_CABLE | col.CABLE_BODY | col.OUTSIDE
 
 
-@pytest.mark.parametrize('name,expected', [
-    ('kntu_neuron', NEURON_FLAGS),
-    ('kntu_neuron_home', NEURON_FLAGS),
-    ('kntu_pinwheel', col.CABLE_CABLE | col.OUTSIDE),
-    ('kntu_tetra_cross', col.CABLE_CABLE | col.CABLE_BODY | col.OUTSIDE),
-    ('kntu_uncrossed', col.OUTSIDE)])
-def test_classification_matches_brute_force(name, expected):
+#: The brute-force reference takes about a second per 60 poses: one batch of the shipped Neuron
+#: (which meets all three collision types) runs with the unit tests, four batches of every
+#: description with the slow ones.
+SLOW = pytest.mark.slow
+
+
+@pytest.mark.parametrize('name,expected,batches', [
+    ('kntu_neuron', NEURON_FLAGS, 1),
+    pytest.param('kntu_neuron', NEURON_FLAGS, 4, marks=SLOW),
+    pytest.param('kntu_neuron_home', NEURON_FLAGS, 4, marks=SLOW),
+    pytest.param('kntu_pinwheel', col.CABLE_CABLE | col.OUTSIDE, 4, marks=SLOW),
+    pytest.param('kntu_tetra_cross', col.CABLE_CABLE | col.CABLE_BODY | col.OUTSIDE, 4,
+                 marks=SLOW),
+    pytest.param('kntu_uncrossed', col.OUTSIDE, 4, marks=SLOW)])
+def test_classification_matches_brute_force(name, expected, batches):
     """Screened, vectorised classification equals a brute-force reference on random poses.
 
     A large cable radius makes cable-cable collisions frequent, so the screen is exercised.
@@ -183,7 +193,7 @@ def test_classification_matches_brute_force(name, expected):
     data['cable_radius'] = 0.049
     desc = description_from_dict(data)
     seen = 0
-    for _ in range(4):
+    for _ in range(batches):
         rot = rotation_matrix(*rng.uniform(-0.8, 0.8, 3))
         pos = rng.uniform(-1, 1, (60, 3)) * (desc.frame_half_size - 0.15)
         fast = col.classify_poses(desc, pos, rot)
@@ -195,14 +205,20 @@ def test_classification_matches_brute_force(name, expected):
     assert seen == expected      # the uncrossed cables never meet
 
 
-def test_results_do_not_depend_on_batching():
+@pytest.mark.parametrize('small', [300, pytest.param(5000, marks=SLOW)])
+def test_results_do_not_depend_on_batching(small):
+    """Chunk sizes change nothing; ``small`` poses go through the one- and seven-pose chunks
+    (a pose at a time is the slow part)."""
     rng = np.random.default_rng(3)
     desc = load_description(CONFIG_DIR / 'kntu_tetra_cross.yaml')
     pos = rng.uniform(-0.9, 0.9, (5000, 3)) * [1, 2, 1]
     rots = rotation_matrix(*rng.uniform(-0.7, 0.7, (3, 5000)))
     ref = col.classify_poses(desc, pos, rots, chunk=5000)
     assert np.any(ref != 0) and np.any(ref == 0)
-    for chunk in (1, 7, 256, 4096):
+    for chunk in (1, 7):
+        np.testing.assert_array_equal(
+            col.classify_poses(desc, pos[:small], rots[:small], chunk=chunk), ref[:small])
+    for chunk in (256, 4096):
         np.testing.assert_array_equal(col.classify_poses(desc, pos, rots, chunk=chunk), ref)
     # Pose by pose through check_pose gives the same verdicts.
     for k in rng.choice(5000, 40, replace=False):

@@ -49,6 +49,7 @@ def test_without_cable_cable_lifts_the_fitted_fig7_limit(neuron):
     assert [r.ry_limit for r in no_body] == [r.ry_limit for r in base]
 
 
+@pytest.mark.slow            # every published figure recomputed (quick grids): seconds
 def test_published_table_marks_fitted_and_held_out(neuron):
     res = pf.published_table(neuron, quick=True)
     use = {r['figure']: r['use'] for r in res['rows']}
@@ -126,6 +127,7 @@ def test_report_quick_writes_the_tables(tmp_path):
     assert paths[1].stat().st_size > 10_000
 
 
+@pytest.mark.slow            # the held-out study end to end
 def test_heldout_cli_on_a_coarse_pitch(tmp_path, capsys):
     """``paramotion workspace heldout`` on a 1 m pitch: counts consistent with the rows."""
     import json
