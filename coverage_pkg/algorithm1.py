@@ -69,6 +69,7 @@ class PaperConfig:
     overlap: float = 0.2            # m, laps are 2 delta - overlap apart
     min_run: float = 0.5            # m, a stretch of a lap shorter than this is echo noise
     same_event: float = 0.5         # m, an event this near a known one is the known one
+    view_margin: float = 0.3        # m, a GVD edge ends where all ahead is within delta - this
     stuck_time: float = 6.0         # s commanded but not moving -> the target is given up
     max_stuck: int = 6              # stuck events in a row before the run stops
     detector: str = 'extended'      # the paper planner is for the extended-range detector
@@ -867,11 +868,12 @@ class PaperPlanner:
         self.task['heading'] = tuple(tang)
         origin = self.task.setdefault('from', self.pose[:2])
         self.task['far'] = max(self.task.get('far', 0.0), math.dist(origin, self.pose[:2]))
-        if self.echo(math.atan2(tang[1], tang[0])) <= self.cfg.radius + 0.35:
+        if self.echo(math.atan2(tang[1], tang[0])) <= self.cfg.radius + 0.35 or \
+                self._ahead_in_view(tang):
             return self._end_branch('dead_end')
         if 'cusp' not in self.cfg.without and self.D > self.det + 0.1 and \
                 self.task['far'] > 1.0:
-            return self._end_branch('cusp')       # Fig. 11: D rose above delta
+            return self._cusp_ahead(tang)         # Fig. 11: D rose above delta
         if self.task['far'] > 3.0 and math.dist(origin, self.pose[:2]) < 0.5:
             return self._end_branch('loop')
         for m in n.meets:
@@ -881,6 +883,23 @@ class PaperPlanner:
         corr = diff / np.linalg.norm(diff) * (d1 - d2) * 2.0
         return tang * self.cfg.max_speed + corr
 
+    def _cusp_ahead(self, heading):
+        """D has risen above delta on the GVD edge (Fig. 11): the robot has just passed its
+        cusp point. Unless the ring's cusp test placed it already, it is sensed here."""
+        self._cusp_dir = math.atan2(-heading[1], -heading[0])
+        self._on_event(self.t_sweep, 'cusp', self.pose[:2], 'D rose above delta on the GVD '
+                       'edge (Fig. 11)')
+        self._cusp_dir = None
+        return self._end_branch('cusp') if self.mode == 'gvd' else None
+
+    def _ahead_in_view(self, heading):
+        """Every echo of the half-ring ahead lies within the detector's range (less a margin
+        for the cones' width): the edge ends at an obstacle the detector already sees whole
+        (a corner, a dead end), so the rest of it is covered from here."""
+        ahead = np.cos(self.angles - math.atan2(heading[1], heading[0])) >= -0.05
+        r = self.ranges[ahead & np.isfinite(self.ranges)]
+        return bool(len(r)) and float(r.max()) < self.det - self.cfg.view_margin
+
     def _on_meet(self, idx, xy):
         """A meet point: the GVD edges leaving it (bisectors between the closest obstacles'
         bearings) become branches of the narrow node; the robot goes on along one."""
@@ -888,7 +907,7 @@ class PaperPlanner:
         if n is None or n.kind != 'narrow' or self.task.get('branch') is None:
             return
         n.meets.append((float(xy[0]), float(xy[1]), idx))
-        head = np.asarray(self.task.get('heading') or (1.0, 0.0))
+        head = np.asarray(self.task.get('heading') or self.task['branch'].heading or (1.0, 0.0))
         back = math.atan2(-head[1], -head[0])
         out = []
         r = np.where(np.isfinite(self.ranges), self.ranges, 0.0)

@@ -146,13 +146,15 @@ def test_fig13_corridor_is_one_narrow_node_joined_by_both_of_its_cusps():
     """Fig. 13: the corridor's GVD edge from Cs1 reaches the meet point Mp1 (14, 7), whose two
     branches end at the right room's cusps Cs2 (19.73, 9) and Cs3 (19.73, 5). Tracing the
     corridor first (Algorithm 1 covers n before FindUncoveredNode), both cusps create a vast
-    node; the right room's circuit finds the two are one cell, and its sensing of the other
+    node, Cs2's first (the branch nearest the heading at Mp1; Fig. 13's narration also enters
+    the right room at Cs2); the right room's circuit finds the two are one cell, and its
+    sensing of the other
     cusp joins the corridor's node (an edge, no new node). The graph: two vast nodes, one
     corridor node with three edges, the corner nodes."""
     p = _run('fig13')
     _check_graph(p, [('narrow', (1, 1)), ('vast', (2, 2)), ('narrow', (10, 2)),
                      ('narrow', (12 - S1, 7)), ('narrow', (10, 12)), ('narrow', (2, 12)),
-                     ('vast', (18 + S1, 5)), ('narrow', (20, 2)), ('narrow', (28, 2)),
+                     ('vast', (18 + S1, 9)), ('narrow', (20, 2)), ('narrow', (28, 2)),
                      ('narrow', (28, 12)), ('narrow', (20, 12))],
                  [(1, 0, (2, 2)), (1, 2, (10, 2)), (1, 3, (12 - S1, 7)), (1, 4, (10, 12)),
                   (1, 5, (2, 12)), (6, 3, (18 + S1, 9)), (6, 3, (18 + S1, 5)),
