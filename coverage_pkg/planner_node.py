@@ -1,9 +1,10 @@
 """coverage_planner: coverage with an extended-range detector as a ROS 2 node.
 
-A thin adapter (all the math is in the planners): ``planner:=paper`` runs Algorithm 1 of Acar,
-Choset and Lee driven by sensed events alone (:class:`coverage_pkg.algorithm1.PaperPlanner`,
-ablations with ``without``); ``planner:=grid`` the frontier-driven evidence-grid planner
-(ours, :class:`coverage_pkg.planner.CoveragePlanner`).
+A thin adapter (all the math is in the planners): ``planner:=paper`` (the default) runs
+Algorithm 1 of Acar, Choset and Lee driven by sensed events alone
+(:class:`coverage_pkg.algorithm1.PaperPlanner`, ablations with ``without``);
+``planner:=grid`` the frontier-driven evidence-grid planner (ours, not the paper's,
+:class:`coverage_pkg.planner.CoveragePlanner`).
 Inputs, and nothing else (never the world file, never ground truth):
 
 * ``sonar/scan`` (sensor_msgs/LaserScan: one sweep of the sonar ring, REP 117 values; the
@@ -60,8 +61,8 @@ class CoveragePlannerNode(ParamotionNode):
         Param('detector', 'extended', "'extended': hierarchical decomposition with range "
               "delta; 'robot': robot-size detector, plain boustrophedon (Section II, grid "
               "planner only).", choices=('extended', 'robot'), read_only=True),
-        Param('planner', 'grid', "'paper': Algorithm 1 driven by sensed events alone "
-              "(coverage_pkg/algorithm1.py); 'grid': the frontier-driven evidence-grid "
+        Param('planner', 'paper', "'paper' (default): Algorithm 1 driven by sensed events "
+              "alone (coverage_pkg/algorithm1.py); 'grid': the frontier-driven evidence-grid "
               "planner (ours, coverage_pkg/planner.py).", choices=('paper', 'grid'),
               read_only=True),
         Param('without', '', 'Comma-separated events whose sensing is switched off in the '

@@ -3,15 +3,17 @@
 :func:`write_report` reruns, in the ROS-free loop (:func:`coverage_pkg.kinematic.run_kinematic`,
 the same planner and sonar model as the ROS graph):
 
-* the paper planner (Algorithm 1, :mod:`coverage_pkg.algorithm1`) and the grid planner (ours,
-  frontier-driven, :mod:`coverage_pkg.planner`) side by side on the packaged demo world and on
-  generated worlds (:mod:`coverage_pkg.worldgen`): covered share of CVS, path / lower bound,
+* the paper planner (Algorithm 1, :mod:`coverage_pkg.algorithm1`; the default) and the grid
+  planner (ours, frontier-driven, :mod:`coverage_pkg.planner`) side by side on the packaged demo
+  world, a hand-made room with a pillar (``pillar_room``) and generated worlds
+  (:mod:`coverage_pkg.worldgen`): covered share of CVS, path / lower bound,
   sim and wall time, planner time per sweep, and for the paper planner the share of path
   driven by its primitives (lap, boundary, GVD) rather than transit;
 * the ablations of the paper planner, each event's sensing switched off (``without``) on the
   world made to show it, beside what the paper predicts;
 
-and draws the paper planner's run on the demo world (``coverage_paper_demo.png``).
+and draws both planners' runs on the demo world (``coverage_paper_demo.png``,
+``coverage_grid_demo.png``).
 """
 from __future__ import annotations
 
@@ -27,10 +29,12 @@ import numpy as np
 
 from coverage_pkg.algorithm1 import PaperConfig
 from coverage_pkg.kinematic import run_kinematic
-from coverage_pkg.planner import PlannerConfig
+from coverage_pkg.planner import PlannerConfig, graph_dict
 from coverage_pkg.world import load_world
 
 WORLDS = Path(__file__).resolve().parent / 'worlds'
+#: packaged worlds compared in every report, before the generated ones
+HAND_MADE = ('demo_rooms', 'pillar_room')
 
 #: (event switched off, world, what the paper predicts without it)
 ABLATIONS = (
@@ -80,7 +84,7 @@ def comparison(worlds: Iterable[str | Path], quick: bool = False) -> list[dict[s
     for path in worlds:
         world = load_world(path)
         for name, config in (('paper', PaperConfig()), ('grid', PlannerConfig())):
-            if quick and name == 'grid' and world.name != 'demo_rooms':
+            if quick and name == 'grid' and world.name not in HAND_MADE:
                 continue
             row = _run(world, config)
             row.update(world=world.name, planner=name)
@@ -103,8 +107,8 @@ def ablations() -> list[dict[str, object]]:
 def write_report(out_dir: Path, quick: bool = False) -> list[Path]:
     """Rerun the headline measurements; write ``out_dir/coverage.md`` and its PNG.
 
-    ``quick``: the demo world and one generated world, the grid planner on the demo world
-    only (under two minutes); the full run uses six generated worlds and both planners.
+    ``quick``: the hand-made worlds and one generated world, the grid planner on the hand-made
+    worlds only (under two minutes); the full run uses six generated worlds and both planners.
     """
     from coverage_pkg.figure import render_coverage
     from coverage_pkg.worldgen import write_worlds
@@ -114,16 +118,21 @@ def write_report(out_dir: Path, quick: bool = False) -> list[Path]:
     count = 1 if quick else 6
     with tempfile.TemporaryDirectory() as tmp:
         generated = write_worlds(tmp, count, seed=100)
-        rows = comparison([WORLDS / 'demo_rooms.json'] + [Path(p) for p in generated], quick)
+        rows = comparison([WORLDS / f'{name}.json' for name in HAND_MADE]
+                          + [Path(p) for p in generated], quick)
     abl = ablations()
-    demo = next(r for r in rows if r['world'] == 'demo_rooms' and r['planner'] == 'paper')
-    png = out_dir / 'coverage_paper_demo.png'
-    run = demo['run']
-    render_coverage(png, load_world(WORLDS / 'demo_rooms.json'), run['path'],
-                    run['planner'].to_dict(), None, run['accumulator'].uncovered_points(),
-                    f"demo_rooms, paper planner (ROS-free loop): path {run['path_length']:.1f} m"
-                    f" = {demo['ratio']:.2f} x bound, covered {_pct(demo['covered'])} of CVS, "
-                    f"{demo['state']}")
+    pngs = []
+    for name in ('paper', 'grid'):
+        demo = next(r for r in rows if r['world'] == 'demo_rooms' and r['planner'] == name)
+        png = out_dir / f'coverage_{name}_demo.png'
+        run = demo['run']
+        render_coverage(png, load_world(WORLDS / 'demo_rooms.json'), run['path'],
+                        graph_dict(run['planner']), None,
+                        run['accumulator'].uncovered_points(),
+                        f"demo_rooms, {name} planner (ROS-free loop): path "
+                        f"{run['path_length']:.1f} m = {demo['ratio']:.2f} x bound, covered "
+                        f"{_pct(demo['covered'])} of CVS, {demo['state']}")
+        pngs.append(png)
     elapsed = time.perf_counter() - start
 
     cmd = ('python -c "from pathlib import Path; from coverage_pkg.report import write_report; '
@@ -138,8 +147,10 @@ def write_report(out_dir: Path, quick: bool = False) -> list[Path]:
              'simulated 16-transducer sonar ring (max range 5 m), detector range delta = 2 m; '
              f'generated worlds: `paramotion coverage-worlds --count {count} --seed 100`', '',
              '## Paper planner and grid planner on the same worlds', '',
-             'paper: Algorithm 1 driven by sensed events alone (`--planner paper`). grid: the '
-             'frontier-driven evidence-grid planner (ours, `--planner grid`). Bound: '
+             'paper: Algorithm 1 driven by sensed events alone (`--planner paper`, the '
+             'default). grid: the frontier-driven evidence-grid planner (ours, not the '
+             "paper's, `--planner grid`). pillar_room: a 9 m x 6 m room with a 1.5 m x 1 m "
+             'pillar (`coverage_pkg/worlds/pillar_room.json`). Bound: '
              '|CVS| / (2 delta). Primitives: share of the path driven by laps, boundary '
              'following and GVD following (the rest is transit along traced paths).', '']
     lines += _table(['world', 'planner', 'end', 'covered CVS', 'path / bound', 'primitives',
@@ -149,7 +160,7 @@ def write_report(out_dir: Path, quick: bool = False) -> list[Path]:
                       _num(r['wall'], 1), _num(r['median_ms']), _num(r['p99_ms']))
                      for r in rows])
     for name in ('paper', 'grid'):
-        mine = [r for r in rows if r['planner'] == name and r['world'] != 'demo_rooms']
+        mine = [r for r in rows if r['planner'] == name and r['world'] not in HAND_MADE]
         if mine:
             lines += ['', f'- {name}, {len(mine)} generated worlds: mean covered '
                       f'{_pct(float(np.mean([r["covered"] for r in mine])))}, min '
@@ -166,7 +177,9 @@ def write_report(out_dir: Path, quick: bool = False) -> list[Path]:
                     [(a['event'], a['world'], a['predicted'],
                       f"{_pct(a['full']['covered'])}, {a['full']['state']}",
                       f"{_pct(a['cut']['covered'])}, {a['cut']['state']}") for a in abl])
-    lines += ['', f'![paper planner on demo_rooms]({png.name})', '']
+    lines += ['', '| paper planner (default) | grid planner (ours) |', '|---|---|',
+              f'| ![paper planner on demo_rooms]({pngs[0].name}) | '
+              f'![grid planner on demo_rooms]({pngs[1].name}) |', '']
     md = out_dir / 'coverage.md'
     md.write_text('\n'.join(lines))
-    return [md, png]
+    return [md, *pngs]

@@ -34,11 +34,11 @@ from paramotion.scenario_io import add_output_args, output_dir, write_json
 LAUNCH_FILE = 'coverage'
 TOPICS = recorded_topics(load_launch(LAUNCH_FILE, {'record': True}))
 PLANNERS = ('paper', 'grid')
-DEFAULT_PLANNER = 'grid'
+DEFAULT_PLANNER = 'paper'
 
 
 def validate_inputs(world_path, delta, radius, detector, sonar_max_range, max_sim_time=1.0,
-                    planner='grid', without=()):
+                    planner=DEFAULT_PLANNER, without=()):
     """Check every input before anything runs; raise UserError with one line if bad."""
     if planner not in PLANNERS:
         raise UserError(f'--planner {planner}: must be one of {", ".join(PLANNERS)}')
@@ -238,7 +238,7 @@ def _common(parser):
     parser.add_argument('--radius', type=float, default=0.25, help='robot radius (m)')
     parser.add_argument('--detector', choices=('extended', 'robot'), default='extended',
                         help='extended-range detector (hierarchical decomposition) or the '
-                        'robot-size baseline (plain boustrophedon)')
+                        'robot-size baseline (plain boustrophedon; needs --planner grid)')
     parser.add_argument('--sonar-max-range', type=float, default=5.0,
                         help='sonar max range (m); must exceed --delta')
     parser.add_argument('--max-sim-time', type=float, default=4000.0,
@@ -255,7 +255,7 @@ def add_planner_args(parser):
     parser.add_argument('--planner', choices=PLANNERS, default=DEFAULT_PLANNER,
                         help='paper: Algorithm 1 driven by sensed events alone '
                         '(coverage_pkg/algorithm1.py); grid: the frontier-driven evidence-grid '
-                        f'planner (ours). Default: {DEFAULT_PLANNER}')
+                        f"planner (ours, not the paper's). Default: {DEFAULT_PLANNER}")
     parser.add_argument('--without', action='append', choices=EVENTS, default=[],
                         help='switch the sensing of this event off in the paper planner '
                         '(repeatable)')

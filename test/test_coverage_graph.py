@@ -16,6 +16,8 @@ BAGS = Path(__file__).resolve().parents[1] / 'bags'
 
 SMALL = {'name': 'small', 'boundary': [[0, 0], [9, 0], [9, 6], [0, 6]],
          'obstacles': [[[4, 2.5], [5.5, 2.5], [5.5, 3.5], [4, 3.5]]], 'start': [1.0, 1.0]}
+ROOM = {'name': 'room', 'boundary': [[0, 0], [7, 0], [7, 6], [0, 6]], 'obstacles': [],
+        'start': [1.0, 1.0]}
 
 
 def _world(tmp_path, data=SMALL, name='small.json'):
@@ -24,14 +26,12 @@ def _world(tmp_path, data=SMALL, name='small.json'):
     return p
 
 
-def test_full_graph_covers_a_small_world_and_terminates(tmp_path):
-    """Sim + sonar + planner + monitor + recorder in one executor, with 1.5 s of sonar silence
-    half-way: the planner stops, resumes, covers >= 99 % of CVS and says it is done."""
+def _run_with_silence(tmp_path, world, **kwargs):
+    """The coverage graph in one executor, recorded, with 1.5 s of sonar silence from 8 s."""
     from coverage_pkg.scenario import run_coverage
-    world = _world(tmp_path)
     bag = tmp_path / 'bag'
-    r = run_coverage(world, bag_dir=bag, max_sim_time=400.0,
-                     sonar_params={'silence_start': 8.0, 'silence_duration': 1.5})
+    r = run_coverage(_world(tmp_path, world), bag_dir=bag, max_sim_time=400.0,
+                     sonar_params={'silence_start': 8.0, 'silence_duration': 1.5}, **kwargs)
     assert r['outcome'] == 'complete', r['events'][-3:]
     assert r['covered_fraction_of_cvs'] >= 0.99
     assert r['sim_time_s'] < 400.0
@@ -40,11 +40,6 @@ def test_full_graph_covers_a_small_world_and_terminates(tmp_path):
     assert 'sonar_timeout' in kinds and 'sonar_resumed' in kinds
     stop = next(e for e in r['events'] if e[1] == 'sonar_timeout')
     assert 8.0 <= stop[0] <= 8.0 + 0.5 + 0.15
-    # Every free point of the 9 m x 6 m room is within delta = 2 m of a wall or the obstacle:
-    # VR is empty and the space is one narrow cell (Sec. IV-A), covered, with no edge.
-    alive = [n for n in r['hierarchical_graph']['nodes'] if n['alive']]
-    assert [(n['type'], n['covered']) for n in alive] == [('narrow', True)]
-    assert r['hierarchical_graph']['edges'] == []
     assert r['given_up_nodes'] == []
     info = bag_info(bag)
     assert info.complete
@@ -60,6 +55,43 @@ def test_full_graph_covers_a_small_world_and_terminates(tmp_path):
     status = [deserialize(m) for m in read_messages(bag, ['/coverage/status'])]
     values = {kv.key: kv.value for kv in status[-1].status[0].values}
     assert values['state_now'] == 'done'
+    return r
+
+
+def test_full_graph_covers_a_room_with_the_paper_planner_and_terminates(tmp_path):
+    """The default graph (paper planner): sim + sonar + planner + monitor + recorder in one
+    executor, with 1.5 s of sonar silence half-way: the planner stops, resumes, covers >= 99 %
+    of CVS and says it is done. In the 7 m x 6 m room VR is the rectangle 2 m from the walls
+    and NR the band along them, whose GVD is the four corners' diagonals: the hand-computed
+    graph is one vast node joined by one cusp each to four narrow corner nodes, the start's
+    corner first; every node but the start is created by a sensed cusp, and all are covered."""
+    r = _run_with_silence(tmp_path, ROOM)
+    assert r['planner'] == 'paper'
+    g = r['hierarchical_graph']
+    alive = [n for n in g['nodes'] if n['alive']]
+    assert [n['type'] for n in alive] == ['narrow', 'vast', 'narrow', 'narrow', 'narrow']
+    assert all(n['covered'] for n in alive)
+    assert alive[0]['created_by_event'] is None
+    for n in alive[1:]:
+        assert r['events'][n['created_by_event']][1] == 'cusp', n
+    vast = alive[1]['id']
+    assert sorted((e['vast'], e['narrow'], len(e['cusp_points'])) for e in g['edges']) == \
+        [(vast, n['id'], 1) for n in alive if n['id'] != vast]
+    corners = [(0, 0), (7, 0), (7, 6), (0, 6)]
+    assert sorted(min(range(4), key=lambda i: math.dist(corners[i], n['anchor'][:2]))
+                  for n in alive if n['type'] == 'narrow') == [0, 1, 2, 3]
+    assert set(r['primitive_lengths_m']) >= {'lap', 'boundary', 'gvd'}
+
+
+def test_full_graph_with_the_grid_planner_covers_a_small_world(tmp_path):
+    """``planner='grid'`` (ours) in the same graph: every free point of the 9 m x 6 m room is
+    within delta = 2 m of a wall or the obstacle, so VR is empty and the grid planner's space
+    is one narrow cell, covered, with no edge."""
+    r = _run_with_silence(tmp_path, SMALL, planner='grid')
+    assert r['planner'] == 'grid'
+    alive = [n for n in r['hierarchical_graph']['nodes'] if n['alive']]
+    assert [(n['type'], n['covered']) for n in alive] == [('narrow', True)]
+    assert r['hierarchical_graph']['edges'] == []
 
 
 @pytest.mark.parametrize('world, extra, words', [
@@ -70,6 +102,7 @@ def test_full_graph_covers_a_small_world_and_terminates(tmp_path):
     (SMALL, ['--sonar-max-range', '1.5'], 'must exceed the detector range delta'),
     (SMALL, ['--planner', 'grid', '--without', 'cusp'], 'applies to --planner paper only'),
     (SMALL, ['--planner', 'paper', '--detector', 'robot'], 'needs --planner grid'),
+    (SMALL, ['--detector', 'robot'], 'needs --planner grid'),     # the default: paper
 ])
 def test_bad_input_gives_one_line_error_and_no_output(tmp_path, capsys, world, extra, words):
     out = tmp_path / 'out'
@@ -80,6 +113,27 @@ def test_bad_input_gives_one_line_error_and_no_output(tmp_path, capsys, world, e
     assert words in err and len(err.splitlines()) == 1
     assert not out.exists()
     assert not list(tmp_path.glob('.out.partial*'))
+
+
+def test_the_paper_planner_is_the_default_everywhere():
+    """coverage_planner, the launch file, paramotion coverage / demo / coverage-ratio /
+    coverage sweep all run Algorithm 1 unless asked for the grid planner."""
+    import argparse
+
+    from coverage_pkg import demo, scenario
+    from coverage_pkg.planner_node import CoveragePlannerNode
+    from paramotion import launch_xml
+    assert scenario.DEFAULT_PLANNER == 'paper'
+    assert next(p for p in CoveragePlannerNode.PARAMS if p.name == 'planner').default == 'paper'
+    assert launch_xml.load('coverage').node('coverage_planner').params['planner'] == 'paper'
+    sub = argparse.ArgumentParser().add_subparsers()
+    scenario.register(sub)
+    demo.register(sub)
+    for name, args in (('coverage', ['--world', 'w.json']), ('coverage-benchmark',
+                                                             ['--world', 'w.json']),
+                       ('coverage-ratio', ['--worlds', 'd']), ('demo', []),
+                       ('coverage', ['sweep', '--worlds', 'd'])):
+        assert sub.choices[name].parse_args(args).planner == 'paper', name
 
 
 def test_sonar_ring_publishes_rep117_ranges_and_scan(tmp_path):
@@ -182,15 +236,24 @@ def _replay(bag, config, beam_width):
     return mine, recorded, driver.planner
 
 
-def test_replayed_bag_gives_the_same_decisions():
-    """bags/coverage_sample: odometry and sonar recorded from a full run; a fresh planner fed
-    the same inputs sends exactly the recorded velocity commands and finishes the same way."""
+def _sample_config(params, **changes):
+    """The planner configuration of the recorded run (params.json), with ``changes``."""
+    from coverage_pkg.algorithm1 import PaperConfig
     from coverage_pkg.planner import PlannerConfig
+    cls = {'paper': PaperConfig, 'grid': PlannerConfig}[params['planner']]
+    return cls(delta=params['delta'], radius=params['radius'], **changes)
+
+
+def test_replayed_bag_gives_the_same_decisions():
+    """bags/coverage_sample: odometry and sonar recorded from a full run of the default graph
+    (the paper planner); a fresh planner fed the same inputs sends exactly the recorded
+    velocity commands and finishes the same way."""
     sample = BAGS / 'coverage_sample'
     params = json.loads((sample / 'params.json').read_text())
-    config = PlannerConfig(delta=params['delta'], radius=params['radius'])
-    mine, recorded, planner = _replay(sample / 'bag', config, params['beam_width'])
-    assert len(recorded) > 150                 # the recorded run is 25.1 s
+    assert params['planner'] == 'paper'
+    mine, recorded, planner = _replay(sample / 'bag', _sample_config(params),
+                                      params['beam_width'])
+    assert len(recorded) > 150                 # the recorded run is about 40 s
     assert mine == recorded
     assert planner.state == 'done'
     status = [deserialize(m) for m in read_messages(sample / 'bag', ['/coverage/status'])]
@@ -198,14 +261,17 @@ def test_replayed_bag_gives_the_same_decisions():
     assert last['state_now'] == 'done'
     # Same decisions, not just the same motion: the sequence of chosen nodes is recorded.
     assert [d[1:3] for d in planner.decisions] == [tuple(d) for d in params['node_choices']]
+    # ... made on the same sensed events at the same sim times (cusps, critical points, nodes
+    # created and covered, the end).
+    assert [[e[0], e[1]] for e in planner.events] == params['events']
+    assert [e[1] for e in planner.events].count('cusp') >= 4
 
 
 def test_replay_detects_a_different_planner():
     """The replay comparison is sharp: a planner with another speed limit is caught."""
-    from coverage_pkg.planner import PlannerConfig
     sample = BAGS / 'coverage_sample'
     params = json.loads((sample / 'params.json').read_text())
-    config = PlannerConfig(delta=params['delta'], radius=params['radius'], max_speed=0.9)
-    mine, recorded, _ = _replay(sample / 'bag', config, params['beam_width'])
+    mine, recorded, _ = _replay(sample / 'bag', _sample_config(params, max_speed=0.9),
+                                params['beam_width'])
     assert mine != recorded
     assert not math.isnan(sum(v for c in mine for v in c))

@@ -1,5 +1,5 @@
-"""The online planner in a ROS-free closed loop: coverage, unseen worlds, faults (REP 117 values,
-sonar silence, a stuck robot)."""
+"""The grid planner (ours, ``planner='grid'``: a PlannerConfig) in a ROS-free closed loop:
+coverage, unseen worlds, faults (REP 117 values, sonar silence, a stuck robot)."""
 import math
 
 import numpy as np
@@ -13,6 +13,8 @@ from coverage_pkg.world import random_world, world_from_dict
 
 pytestmark = pytest.mark.slow  # whole coverage runs of generated worlds
 
+GRID = PlannerConfig()      # the grid planner, not the default (paper) one
+
 SMALL = {'name': 'small', 'boundary': [[0, 0], [9, 0], [9, 6], [0, 6]],
          'obstacles': [[[4, 2.5], [5.5, 2.5], [5.5, 3.5], [4, 3.5]]], 'start': [1.0, 1.0]}
 
@@ -22,7 +24,7 @@ L_ROOM = {'name': 'l_room', 'boundary': [[0, 0], [8, 0], [8, 2], [3, 2], [3, 9],
 
 
 def test_small_world_is_covered_and_planner_says_done():
-    r = run_kinematic(world_from_dict(SMALL), max_time=600)
+    r = run_kinematic(world_from_dict(SMALL), GRID, max_time=600)
     assert r['state'] == 'done'
     assert r['covered_fraction'] >= 0.99
     assert r['path_length'] >= r['lower_bound']          # the bound is a bound
@@ -38,7 +40,7 @@ def test_small_world_is_covered_and_planner_says_done():
 @pytest.mark.parametrize('seed', [7, 11])
 def test_unseen_random_worlds_are_covered(seed):
     world = random_world(seed, size=(10.0, 8.0), n_obstacles=2)
-    r = run_kinematic(world, max_time=900, seed=seed)
+    r = run_kinematic(world, GRID, max_time=900, seed=seed)
     assert r['state'] == 'done', r['planner'].events[-3:]
     assert r['covered_fraction'] >= 0.99
 
@@ -65,13 +67,13 @@ def test_nan_and_infinite_readings_are_survived():
         out[u < 0.3] = math.nan
         out[(u >= 0.3) & (u < 0.33)] = -math.inf
         return out
-    r = run_kinematic(world_from_dict(SMALL), max_time=900, corrupt=corrupt)
+    r = run_kinematic(world_from_dict(SMALL), GRID, max_time=900, corrupt=corrupt)
     assert r['state'] == 'done'
     assert r['covered_fraction'] >= 0.99
 
 
 def test_all_nan_sweeps_do_not_move_the_robot_blindly():
-    r = run_kinematic(world_from_dict(SMALL), max_time=5,
+    r = run_kinematic(world_from_dict(SMALL), GRID, max_time=5,
                       corrupt=lambda t, x: np.full_like(x, math.nan))
     assert r['path_length'] == 0.0
     assert r['planner'].sweeps == 0
@@ -83,7 +85,7 @@ def test_sonar_silence_stops_the_robot_and_coverage_resumes():
 
     def watch(t, planner, cmd):
         states.append((round(t, 3), cmd.state, math.hypot(cmd.vx, cmd.vy)))
-    r = run_kinematic(world_from_dict(SMALL), max_time=600,
+    r = run_kinematic(world_from_dict(SMALL), GRID, max_time=600,
                       dropout=lambda t: 10.0 <= t < 13.0, on_step=watch)
     # The last sweep is at t = 9.9: the robot stops once 0.5 s have passed without one.
     silent = [s for s in states if 10.45 <= s[0] < 13.0]

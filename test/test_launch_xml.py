@@ -177,6 +177,7 @@ def test_scenario_runner_builds_the_graph_from_the_launch_file():
     from paramotion.launch import graph_from_launch
     with Graph() as graph:
         nodes, topics = graph_from_launch(graph, 'coverage', {'detector': 'robot',
+                                                              'planner': 'grid',
                                                               'radius': 0.3})
         assert sorted(nodes) == ['coverage_monitor', 'coverage_planner', 'coverage_sim',
                                  'coverage_sonar']
@@ -184,6 +185,7 @@ def test_scenario_runner_builds_the_graph_from_the_launch_file():
         assert monitor.params.delta == 0.3 and monitor.params.radius == 0.3
         assert nodes['coverage_sim'].params.lockstep is True
         assert nodes['coverage_planner'].params.detector == 'robot'
+        assert nodes['coverage_planner'].params.planner == 'grid'
         assert '/coverage/covered_fraction' in topics
 
 
