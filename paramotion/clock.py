@@ -11,6 +11,8 @@ A :class:`ClockSourceNode` advances simulated time in fixed periods. Two ways to
   steady wall-clock timer calls :meth:`advance` at ``real_time_factor`` times real time, so
   nodes in other processes see ``/clock`` advance smoothly over DDS.
 """
+import time
+
 from builtin_interfaces.msg import Time
 from rclpy.clock import Clock, ClockType
 from rosgraph_msgs.msg import Clock as ClockMsg
@@ -44,6 +46,14 @@ class ClockSourceNode(ParamotionNode):
         Param('wait_for_matched', [''], "Free-running only: also hold time until this node's "
               "publishers have these many matched subscribers, as 'topic:count' entries.",
               read_only=True),
+        Param('sync_max_lag', -1.0, 'Free-running only: do not advance while an answer of a '
+              'controller (the commands the simulator names as answers) has been due for '
+              'longer than this many sim seconds, so real_time_factor becomes a ceiling the '
+              'simulator slows down from instead of running away from a late controller '
+              '(< 0: never wait).', min=-1.0, max=10.0, read_only=True),
+        Param('sync_timeout', 1.0, 'Free-running with sync_max_lag >= 0: wall seconds to wait '
+              'for an answer before advancing anyway (and warning once: controller gone).',
+              min=0.01, max=60.0, read_only=True),
     )
 
     def __init__(self, node_name, **kwargs):
@@ -57,6 +67,13 @@ class ClockSourceNode(ParamotionNode):
         self.clock_hooks = []
         self._waiting = (self.params.wait_for_clock_subscribers > 0
                          or any(self.params.wait_for_matched))
+        #: Per answering controller: [stamp of its last answer, its shortest interval
+        #: between answers] in sim ns (:meth:`answered`).
+        self.answers = {}
+        self.sync_waits = 0           # timer ticks that waited for an answer
+        self._sync_lag_ns = int(round(self.params.sync_max_lag * NS))
+        self._sync_since = None       # wall time (monotonic) the current wait began
+        self._sync_warned = False
         if not self.params.lockstep:
             self._start_free_running()
 
@@ -102,11 +119,60 @@ class ClockSourceNode(ParamotionNode):
                     return False
         return True
 
+    def answered(self, source, stamp_ns):
+        """Subclass hook: controller ``source`` answered the state of sim time ``stamp_ns``
+        (the stamp of the command it computed from that state).
+
+        A controller's next answer is due one interval (the shortest seen between its answers:
+        its period) after its last; with ``sync_max_lag`` >= 0 a free-running source waits
+        while an answer has been due for longer than the lag.
+        """
+        entry = self.answers.get(source)
+        if entry is None:
+            self.answers[source] = [stamp_ns, None]
+        elif stamp_ns > entry[0]:
+            interval = stamp_ns - entry[0]
+            entry[1] = interval if entry[1] is None else min(entry[1], interval)
+            entry[0] = stamp_ns
+
+    def _late_answer(self):
+        """The first controller whose answer is overdue by more than the lag, else None."""
+        limit = self.sim_time_ns - self._sync_lag_ns
+        for source, (last, interval) in self.answers.items():
+            if interval is not None and last + interval <= limit:
+                return source
+        return None
+
+    def _must_wait_for_answer(self):
+        if self._sync_lag_ns < 0:
+            return False
+        late = self._late_answer()
+        if late is None:
+            self._sync_since = None
+            if self._sync_warned:
+                self._sync_warned = False
+                self.get_logger().info('controllers answering again: simulator in sync')
+            return False
+        now = time.monotonic()
+        if self._sync_since is None:
+            self._sync_since = now
+        if now - self._sync_since < self.params.sync_timeout:
+            self.sync_waits += 1
+            return True
+        if not self._sync_warned:
+            self._sync_warned = True
+            self.get_logger().warning(
+                f'no answer from {late} for {self.params.sync_timeout:g} s of wall time: '
+                'advancing without it')
+        return False
+
     def _free_running_tick(self):
         if self._waiting:
             if not self._start_condition_met():
                 return
             self._waiting = False
+        if self._must_wait_for_answer():
+            return
         self.advance()
 
     def advance(self):

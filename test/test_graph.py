@@ -226,3 +226,34 @@ def test_unknown_executor_is_refused():
     import pytest
     with pytest.raises(ValueError, match='executor'):
         Graph(executor='threads')
+
+
+def test_free_running_source_waits_for_its_controllers_answers_then_times_out():
+    """sync_max_lag: once a controller has answered twice (its interval known), a free-running
+    clock source does not advance while that controller's next answer has been due for longer
+    than the lag; without it for sync_timeout wall seconds it advances anyway."""
+    from paramotion.clock import ClockSourceNode
+
+    class Source(ClockSourceNode):
+        def __init__(self, **kwargs):
+            super().__init__('sync_source', **kwargs)
+
+    ms = 1_000_000
+    with Graph() as graph:
+        src = graph.add(Source, lockstep=False, real_time_factor=0.0, publish_period=0.01,
+                        sync_max_lag=0.0, sync_timeout=0.5)
+        graph.spin_wall(0.3)
+        assert src.sim_time_ns > 50 * ms              # nobody answered yet: free-running
+        held = src.sim_time_ns
+        src.answered('slow', held - 40 * ms)           # a controller at 50 Hz whose answer
+        src.answered('slow', held - 20 * ms)           # to the state of `held` is due
+        src.answered('fast', held)                     # one answer: no interval yet
+        graph.spin_wall(0.2)
+        assert src.sim_time_ns == held and src.sync_waits > 0
+        start = time.monotonic()
+        src.answered('slow', held)
+        graph.spin_wall(0.2)
+        assert src.sim_time_ns == held + 20 * ms       # one more interval, then waits again
+        graph.spin_wall(2.0, until=lambda: src.sim_time_ns > held + 80 * ms)
+        assert src.sim_time_ns > held + 80 * ms        # controller gone: advancing again
+        assert time.monotonic() - start > 0.5

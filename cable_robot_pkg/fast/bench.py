@@ -40,6 +40,53 @@ def bench_one_process(duration: float = 10.0, repeat: int = 3) -> dict[str, floa
             'fast_real_time_factor_cpu': float(cpus[len(cpus) // 2])}
 
 
+def cpu_breakdown(duration: float = 3.0) -> dict[str, float]:
+    """Where the one-process FAST graph's CPU time goes: CPU seconds per sim second of a
+    lock-step run (as ``run_graph`` composes it) by part: the simulator's physics step
+    (PyBullet, cable and wind models), its state messages, each node's callbacks (timers and
+    subscriptions, message conversion and the control algorithm), and the rest (the executor,
+    messages taken, ``/clock``). Callbacks are timed with ``time.process_time``."""
+    from collections import Counter
+
+    from cable_robot_pkg.fast.scenario import LAUNCH_FILE, detach_qos_event_handlers
+    from paramotion.graph import Graph
+    from paramotion.launch import graph_from_launch
+
+    acc = Counter()
+
+    def timed(key, fn):
+        def wrapper(*args):
+            t0 = time.process_time()
+            try:
+                return fn(*args)
+            finally:
+                acc[key] += time.process_time() - t0
+        return wrapper
+
+    with Graph() as graph:
+        nodes, _ = graph_from_launch(graph, LAUNCH_FILE, {})
+        sim = nodes['fast_sim']
+        sim.advance_time = timed('fast_sim: physics step (PyBullet, cables, wind)',
+                                 sim.advance_time)
+        sim.publish_state = timed('fast_sim: state messages', sim.publish_state)
+        for label, node in nodes.items():
+            key = f'{label}: callbacks' if node is not sim else 'fast_sim: command callbacks'
+            for sub in node.subscriptions:
+                sub.callback = timed(key, sub.callback)
+            for tmr in node.timers:
+                tmr.callback = timed(key, tmr.callback)
+        detach_qos_event_handlers(graph.nodes)
+        graph.run_lockstep(sim, max_sim_time=0.2)
+        acc.clear()
+        c0 = time.process_time()
+        graph.run_lockstep(sim, max_sim_time=0.2 + duration)
+        total = time.process_time() - c0
+    out = {key: value / duration for key, value in acc.most_common()}
+    out['executor, messages taken, /clock'] = (total - sum(acc.values())) / duration
+    out['total'] = total / duration
+    return out
+
+
 def _process_env(executor: str, domain_id: int) -> dict:
     env = dict(os.environ)
     env['PARAMOTION_EXECUTOR'] = executor
@@ -72,6 +119,54 @@ def _stop(procs: dict, timeout: float = 20.0) -> dict:
     return out
 
 
+class _ClockProbe:
+    """Samples ``/clock`` on ``domain_id`` against the wall clock (its own context and a
+    daemon thread), for the sim seconds per wall second the launched graph reaches."""
+
+    def __init__(self, domain_id: int):
+        import threading
+
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+        from rosgraph_msgs.msg import Clock
+
+        from paramotion.qos import CLOCK_QOS
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context, domain_id=domain_id)
+        self.node = rclpy.create_node('fast_bench_clock_probe', context=self.context)
+        self.samples = []          # (wall s, sim s)
+        self.node.create_subscription(Clock, '/clock', lambda m: self.samples.append(
+            (time.monotonic(), m.clock.sec + m.clock.nanosec * 1e-9)), CLOCK_QOS)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._spin, daemon=True)
+        self._thread.start()
+
+    def _spin(self):
+        while not self._stop.is_set():
+            self.executor.spin_once(timeout_sec=0.1)
+
+    def sim_per_wall(self, skip: float = 0.25) -> float:
+        """Sim seconds per wall second after the first ``skip`` of the running time."""
+        running = [s for s in self.samples if s[1] > 0.0]
+        if len(running) < 2:
+            return 0.0
+        w0 = running[0][0] + skip * (running[-1][0] - running[0][0])
+        later = [s for s in running if s[0] >= w0]
+        if len(later) < 2 or later[-1][0] <= later[0][0]:
+            return 0.0
+        return (later[-1][1] - later[0][1]) / (later[-1][0] - later[0][0])
+
+    def close(self):
+        import rclpy
+        self._stop.set()
+        self._thread.join(timeout=2.0)
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
 def bench_processes(wall_s: float = 40.0, real_time_factor: float = 1.0,
                     executor: str = 'events', launch_args: dict = None,
                     settle: float = SETTLE_S) -> dict:
@@ -91,9 +186,19 @@ def bench_processes(wall_s: float = 40.0, real_time_factor: float = 1.0,
         args = {'record': True, 'bag': str(bag), 'real_time_factor': float(real_time_factor)}
         args.update(launch_args or {})
         desc = load_launch('fast', args)
-        env = _process_env(executor, random.SystemRandom().randint(102, 200))
+        domain = random.SystemRandom().randint(102, 200)
+        env = _process_env(executor, domain)
         procs, logs = {}, []
         start = time.monotonic()
+        saved = os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE')
+        os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+        try:
+            probe = _ClockProbe(domain)
+        finally:
+            if saved is None:
+                os.environ.pop('ROS_AUTOMATIC_DISCOVERY_RANGE')
+            else:
+                os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = saved
         try:
             for action in desc.nodes:
                 cmd = node_command(action, find_executable(action.package, action.executable))
@@ -105,6 +210,7 @@ def bench_processes(wall_s: float = 40.0, real_time_factor: float = 1.0,
         finally:
             exits = _stop(procs)
             wall = time.monotonic() - start
+            probe.close()
             for log in logs:
                 log.close()
         failed = {label: (Path(tmp) / f'{label}.log').read_text(errors='replace')[-600:]
@@ -122,6 +228,7 @@ def bench_processes(wall_s: float = 40.0, real_time_factor: float = 1.0,
     return {
         'executor': executor, 'real_time_factor': float(real_time_factor),
         'wall_s': wall, 'sim_time_s': sim_time, 'load_average_1min': load,
+        'sim_per_wall': probe.sim_per_wall(),
         'feed_rms_position_mm': result['feed_rms_position_mm'],
         'feed_rms_orientation_deg': result['feed_rms_orientation_deg'],
         'trolley_rms_position_mm': result['trolley_rms_position_mm'],
@@ -139,36 +246,59 @@ def bench_fast(quick: bool, options: dict) -> dict[str, float]:
 #: Benchmarks that run a lock-step Graph (paramotion bench measures its levers on them).
 LOCKSTEP = ('fast',)
 
+#: The cross-process configurations the performance page measures side by side:
+#: (label, node executor, launch arguments).
+PROCESS_CONFIGS = [
+    ('one process per node, rclpy.spin', 'single_threaded', {'composed': False}),
+    ('one process per node, events executor', 'events', {'composed': False}),
+    ('control nodes composed, events executor', 'events', {'composed': True}),
+    ('one process per node, events, simulator waits (sync_max_lag 0)', 'events',
+     {'composed': False, 'sync_max_lag': 0.0}),
+    ('control nodes composed, events, simulator waits (sync_max_lag 0)', 'events',
+     {'composed': True, 'sync_max_lag': 0.0}),
+]
+
+
 def report_lines(quick: bool, log: Callable[[str], object] = print, wall_s: float = 60.0,
                  real_time_factor: float = 1.0) -> list[str]:
-    """Markdown table for the performance page: the FAST launch file one process per node at
-    ``real_time_factor`` for ``wall_s`` s of wall time, once per node executor, with each
-    node's CPU share and the load average (not part of ``--quick``)."""
-    lines = ['## FAST across processes (`launch/fast.launch.xml`, one process per node)', '']
+    """Markdown table for the performance page: the FAST launch file (with the recorder) at
+    ``real_time_factor`` for ``wall_s`` s of wall time in each of :data:`PROCESS_CONFIGS`,
+    with the sim seconds per wall second reached, the feed errors, each process's CPU share,
+    the CPU seconds all processes used per sim second and the load average (not part of
+    ``--quick``)."""
+    lines = ['## FAST across processes (`launch/fast.launch.xml`)', '']
     if quick:
         return lines + ['Not measured with `--quick` (each run takes a minute of wall time).']
-    lines += [f'real_time_factor {real_time_factor}, {wall_s:.0f} s of wall time per run, '
-              f'errors after {SETTLE_S:.0f} s of sim time; spec 4 mm / 0.1 deg RMS.', '',
-              '| node executor | sim s reached | feed RMS mm | feed RMS deg | trolley RMS mm '
-              '| CPU share per node | CPU s per sim s (all nodes) | exit codes | load |',
-              '|---|---|---|---|---|---|---|---|---|']
-    for executor in ('single_threaded', 'events'):
-        log(f'bench fast across processes ({executor}) ...')
+    lines += [f'real_time_factor {real_time_factor}, {wall_s:.0f} s of wall time per run with '
+              f'the recorder (`record:=true`), errors after {SETTLE_S:.0f} s of sim time; spec '
+              '4 mm / 0.1 deg RMS. Sim s / wall s is measured on `/clock` after start-up; CPU '
+              's per sim s counts every process, start-up and discovery included.', '',
+              '| configuration | sim s reached | sim s / wall s | feed RMS mm | feed RMS deg '
+              '| trolley RMS mm | CPU share per process | CPU s per sim s (all processes) '
+              '| exit codes | load |',
+              '|---|---|---|---|---|---|---|---|---|---|']
+    for label, executor, args in PROCESS_CONFIGS:
+        log(f'bench fast across processes ({label}) ...')
         try:
-            r = bench_processes(wall_s, real_time_factor, executor)
+            r = bench_processes(wall_s, real_time_factor, executor, launch_args=args)
         except Exception as exc:  # a run that fails is a row saying so, not a gap
-            lines.append(f'| {executor} | not measured: {type(exc).__name__}: {exc} | | | | | | '
-                         f'| {os.getloadavg()[0]:.1f} |')
+            lines.append(f'| {label} | not measured: {type(exc).__name__}: {exc} | | | | | | '
+                         f'| | {os.getloadavg()[0]:.1f} |')
             continue
-        shares = ', '.join(f'{k.removeprefix("fast_")} {100 * v:.0f} %'
-                           for k, v in r['cpu_share'].items())
-        codes = sorted(set(map(str, r['exit_codes'].values())))
-        per_sim = sum(r['cpu_share'].values()) * r['wall_s'] / max(r['sim_time_s'], 1e-9)
-        lines.append(f'| {executor} | {r["sim_time_s"]:.1f} | {r["feed_rms_position_mm"]:.1f} '
-                     f'| {r["feed_rms_orientation_deg"]:.3f} | '
-                     f'{r["trolley_rms_position_mm"]:.1f} | {shares} | {per_sim:.2f} | '
-                     f'{", ".join(codes)} | {r["load_average_1min"]:.1f} |')
+        lines.append(process_row(label, r))
     return lines
+
+
+def process_row(label: str, r: dict) -> str:
+    """One table row of :func:`report_lines` from a :func:`bench_processes` result."""
+    shares = ', '.join(f'{k.removeprefix("fast_")} {100 * v:.0f} %'
+                       for k, v in r['cpu_share'].items())
+    codes = sorted(set(map(str, r['exit_codes'].values())))
+    per_sim = sum(r['cpu_share'].values()) * r['wall_s'] / max(r['sim_time_s'], 1e-9)
+    return (f'| {label} | {r["sim_time_s"]:.1f} | {r["sim_per_wall"]:.2f} | '
+            f'{r["feed_rms_position_mm"]:.1f} | {r["feed_rms_orientation_deg"]:.3f} | '
+            f'{r["trolley_rms_position_mm"]:.1f} | {shares} | {per_sim:.2f} | '
+            f'{", ".join(codes)} | {r["load_average_1min"]:.1f} |')
 
 
 # name -> (function(quick, options) -> figures, {key: table label})
@@ -176,5 +306,5 @@ BENCHES = {'fast': (bench_fast, {
     'fast_real_time_factor': 'FAST real-time factor',
     'fast_real_time_factor_cpu': 'FAST sim s / CPU s (one process)'})}
 
-__all__ = ['BENCHES', 'LOCKSTEP', 'bench_fast', 'bench_one_process', 'bench_processes',
-           'report_lines']
+__all__ = ['BENCHES', 'LOCKSTEP', 'PROCESS_CONFIGS', 'bench_fast', 'bench_one_process',
+           'bench_processes', 'process_row', 'report_lines']

@@ -34,7 +34,7 @@ from cable_robot_pkg.fast.ros_messages import (
 from cable_robot_pkg.fast.wind import WindModel
 from paramotion.node import Param, run_node
 from paramotion.qos import STATE_QOS
-from paramotion.sim import SimulationNode
+from paramotion.sim import NS, SimulationNode
 
 
 class FastSimNode(SimulationNode):
@@ -87,6 +87,9 @@ class FastSimNode(SimulationNode):
 
     # ------------------------------------------------------------------ commands
     def _on_winch(self, msg):
+        # The cable controller's winch command, the last message of its tick (sync_max_lag).
+        self.answered('fast_cable_controller', msg.header.stamp.sec * NS
+                      + msg.header.stamp.nanosec)
         pos = joint_vector(msg, self.cable_names)
         vel = joint_vector(msg, self.cable_names, 'velocity')
         if pos is not None and np.all(np.isfinite(pos)) and np.all(pos > 0):
@@ -94,6 +97,10 @@ class FastSimNode(SimulationNode):
                 np.isfinite(vel)) else None, stamp_seconds(msg.header.stamp))
 
     def _on_legs(self, msg):
+        # The isolation controller's leg command answers the state stamped like it
+        # (sync_max_lag: the free-running simulator waits for that answer).
+        self.answered('fast_isolation_controller', msg.header.stamp.sec * NS
+                      + msg.header.stamp.nanosec)
         pos = joint_vector(msg, LEG_NAMES)
         vel = joint_vector(msg, LEG_NAMES, 'velocity')
         if pos is not None and np.all(np.isfinite(pos)):
