@@ -27,7 +27,6 @@ that the run shows what the paper predicts without it. Plain numpy; no ROS.
 """
 from __future__ import annotations
 
-import heapq
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
@@ -153,29 +152,34 @@ class TracedPaths:
 
     Samples every ``step`` m carry the distance ``D`` the ring measured there; two samples are
     joined when they are closer than ``min(D_i, D_j) - clearance`` (the segment then lies in a
-    disk the ring saw free). Dijkstra runs only when a transit is planned.
+    disk the ring saw free), and consecutive samples always. The joins are made when a sample
+    is added (among the samples within ``hop``), so a transit plan is one shortest-path search
+    over a fixed sparse graph.
     """
 
     def __init__(self, clearance: float, step: float = 0.3, bucket: float = 1.5,
                  hop: float = 1.5):
         self.clear, self.step, self.bucket, self.hop = clearance, step, bucket, hop
         self.xy, self.d, self.grid = [], [], {}
+        self._i, self._j, self._w = [], [], []
+        self._csr = None
 
     def add(self, x: float, y: float, d: float) -> None:
         if self.xy and math.dist(self.xy[-1], (x, y)) < self.step:
             return
+        k = len(self.xy)
+        for j in self._near_point((x, y), self.hop + self.clear):
+            step = math.dist(self.xy[j], (x, y))
+            if step <= min(d, self.d[j], self.hop + self.clear) - self.clear or \
+                    (j == k - 1 and step <= self.hop):
+                self._i.append(k)
+                self._j.append(j)
+                self._w.append(max(step, 1e-6))
         self.xy.append((x, y))
         self.d.append(d)
         key = (int(x // self.bucket), int(y // self.bucket))
-        self.grid.setdefault(key, []).append(len(self.xy) - 1)
-
-    def _near(self, i, reach):
-        x, y = self.xy[i]
-        k = int(math.ceil(reach / self.bucket))
-        bx, by = int(x // self.bucket), int(y // self.bucket)
-        for gx in range(bx - k, bx + k + 1):
-            for gy in range(by - k, by + k + 1):
-                yield from self.grid.get((gx, gy), ())
+        self.grid.setdefault(key, []).append(k)
+        self._csr = None
 
     def nearest(self, xy: Sequence[float]) -> int | None:
         for reach in (1.0, 3.0, 10.0, 1e9):
@@ -197,37 +201,27 @@ class TracedPaths:
 
     def distances(self, src: int) -> dict:
         """Path length along the roadmap from sample ``src`` to every sample reached."""
-        return self._dijkstra(src)[0]
+        dist, _ = self._dijkstra(src)
+        ok = np.flatnonzero(np.isfinite(dist))
+        return dict(zip(ok.tolist(), dist[ok].tolist()))
 
     def route(self, src: int, dst: int) -> list:
         """Waypoints from sample ``src`` to sample ``dst`` (empty if not connected)."""
-        dist, prev = self._dijkstra(src, dst)
-        if dst not in dist:
+        dist, prev = self._dijkstra(src)
+        if not np.isfinite(dist[dst]):
             return []
         out = [dst]
         while out[-1] != src:
-            out.append(prev[out[-1]])
+            out.append(int(prev[out[-1]]))
         return [self.xy[i] for i in reversed(out)]
 
-    def _dijkstra(self, src, dst=None):
-        dist, prev, heap = {src: 0.0}, {}, [(0.0, src)]
-        while heap:
-            c, i = heapq.heappop(heap)
-            if c > dist.get(i, math.inf) or i == dst:
-                if i == dst:
-                    break
-                continue
-            reach = min(max(self.d[i] - self.clear, self.step * 1.5), self.hop)
-            for j in self._near(i, reach):
-                step = math.dist(self.xy[i], self.xy[j])
-                if j == i or (step > min(self.d[i], self.d[j], self.hop + self.clear)
-                              - self.clear and abs(i - j) != 1):
-                    continue
-                nc = c + step
-                if nc < dist.get(j, math.inf):
-                    dist[j], prev[j] = nc, i
-                    heapq.heappush(heap, (nc, j))
-        return dist, prev
+    def _dijkstra(self, src):
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import dijkstra
+        n = len(self.xy)
+        if self._csr is None:
+            self._csr = coo_matrix((self._w, (self._i, self._j)), shape=(n, n)).tocsr()
+        return dijkstra(self._csr, directed=False, indices=src, return_predecessors=True)
 
 
 class PaperPlanner:
