@@ -15,8 +15,10 @@ from cable_robot_pkg.fast.focal_surface import (
     hinge_rotation,
 )
 from cable_robot_pkg.fast.isolation import (
+    ConstantAccelerationKF,
     IsolationController,
     PosePredictor,
+    WienerPredictor,
     predictor_response,
     schedule_predictor,
 )
@@ -296,13 +298,15 @@ def test_predictor_schedule_bounds_loop_gain_without_lag(cfg):
             assert np.abs(1 - H).max() < 0.05             # full compensation kept
 
 
-def _coupled_isolation_run(cfg, latency, peak_gain_max, duration=5.0):
+def _coupled_isolation_run(cfg, latency, peak_gain_max, duration=5.0, predictor='kalman'):
     """Kinematic isolator on a base that reacts to the feed: the upper platform hangs 0.65 m
     below the trolley's centre, the trolley rocks (1.6 Hz mode, 3 % damping, 365 kg m^2) under
     a wind torque and under the reaction of the feed's (15 kg) acceleration -- the platform
     coupling of Cheng et al. Tracker (1 mm noise) delayed by ``latency``. Returns the feed
-    RMS error (m), inf if the loop diverged or hit the stroke."""
-    ctl = IsolationController.from_config(cfg)
+    RMS error (m), inf if the loop diverged or hit the stroke. ``predictor``: the
+    ``predictive`` mode's base predictor (``kalman`` or ``wiener``)."""
+    ctl = IsolationController.from_config(
+        load_config(overrides={'isolation': {'predictor': predictor}}))
     ctl.peak_gain_max = peak_gain_max
     g = cfg.geometry
     feed_p, feed_R = cfg.track.pose(0.0)
@@ -347,10 +351,60 @@ def _coupled_isolation_run(cfg, latency, peak_gain_max, duration=5.0):
 
 
 def test_latency_schedule_keeps_coupled_isolator_stable(cfg):
-    """At 80 ms the unscheduled predictor (no bound on its gain) destabilises the coupled
-    platforms; the shipped schedule stays stable and still isolates."""
+    """At 80 ms the unscheduled Kalman predictor (no bound on its gain) destabilises the
+    coupled platforms; its schedule stays stable and still isolates; the least-squares
+    predictor (the default) stays stable there too and isolates better."""
+    bound = cfg.raw['isolation']['peak_gain_max']
     assert _coupled_isolation_run(cfg, 0.08, math.inf) == math.inf
-    assert _coupled_isolation_run(cfg, 0.08, cfg.raw['isolation']['peak_gain_max']) < 0.012
+    kalman = _coupled_isolation_run(cfg, 0.08, bound)
+    assert kalman < 0.012
+    assert _coupled_isolation_run(cfg, 0.08, bound, predictor='wiener') < kalman
+
+
+def _resonant_signal(rng, n, dt, f0=1.5, zeta=0.03, noise=1e-4):
+    """A lightly damped mode driven by white noise (like the trolley's rocking under
+    turbulence), sampled every ``dt``, and its measurements with white noise ``noise``."""
+    wn = 2 * math.pi * f0
+    x, v, out = 0.0, 0.0, np.zeros(n)
+    for k in range(n):
+        v += dt * (-wn * wn * x - 2 * zeta * wn * v) + math.sqrt(dt) * rng.normal(0, 0.2)
+        x += dt * v
+        out[k] = x
+    return out, out + rng.normal(0, noise, n)
+
+
+def test_wiener_predictor_beats_polynomial_extrapolation_on_a_resonance(cfg):
+    """Across 40 ms of latency, the least-squares predictor fitted to the measured motion
+    predicts a noise-driven 1.5 Hz resonance with at least 30 % less error than the scheduled
+    constant-acceleration Kalman predictor (measured: 42 % less); a constant is predicted
+    exactly."""
+    rng = np.random.default_rng(11)
+    dt, lag = 0.005, 8
+    x, z = _resonant_signal(rng, 6000, dt)
+    wiener = WienerPredictor(1, dt, taps=16, spacing=2, window=20.0)
+    r = 1e-4 ** 2
+    q, g, _ = schedule_predictor(cfg.raw['isolation']['process_noise'], r, dt, lag * dt, 5.0,
+                                 (0.3, 2.0))
+    kf = ConstantAccelerationKF(1, q, 1e-4)
+    e_w, e_k = [], []
+    for k in range(lag, len(x)):
+        j = k - lag
+        wiener.add(j * dt, [z[j]])
+        kf.update(j * dt, [z[j]]) if kf.t is not None else kf.reset(j * dt, [z[j]])
+        w = wiener.predict(k * dt)
+        if k * dt > 8.0:
+            assert w is not None
+            e_w.append(w[0] - x[k])
+            e_k.append(g * kf.predict(k * dt)[0, 0] - x[k])
+    rms = lambda e: math.sqrt(np.mean(np.square(e)))  # noqa: E731
+    assert rms(e_w) < 0.7 * rms(e_k), (rms(e_w), rms(e_k))
+    assert np.abs(wiener.response(lag, [0.0]) - 1.0).max() < 1e-9
+    const = WienerPredictor(2, dt, taps=4, spacing=1, window=2.0, min_span=0.5)
+    for k in range(200):
+        const.add(k * dt, [0.3, -1.0] + rng.normal(0, 1e-3, 2))
+    for k in range(200, 300):
+        const.add(k * dt, [0.3, -1.0])
+    assert np.allclose(const.predict(300 * dt + 0.04), [0.3, -1.0], atol=1e-9)
 
 
 def test_isolation_holds_on_dropout_and_recovers(cfg):

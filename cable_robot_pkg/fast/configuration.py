@@ -46,6 +46,8 @@ SPECTRA = ('kaimal', 'davenport', 'white')
 #: Isolation controllers: ``lu`` (PID on direct terminal feedback, Lu et al.), ``cheng`` (base
 #: position prediction + the legs' PD, Cheng et al.), ``predictive`` (the project's own).
 ISOLATION_MODES = ('lu', 'cheng', 'predictive')
+#: Base predictors of the ``predictive`` mode (``isolation.predictor``).
+BASE_PREDICTORS = ('kalman', 'wiener')
 #: Constructs that ``--without NAME`` (node parameter and launch argument ``without``) removes.
 ABLATIONS = ('tracker_feedback', 'isolation', 'prediction')
 
@@ -405,6 +407,12 @@ def _check_tracker_and_controllers(r, raw, leg_min, leg_max):
         r.fail('isolation.rate', f'= {iso_rate:g} Hz must exceed cable_controller.rate = '
                f'{cable_rate:g} Hz (fine loop faster than the coarse loop)')
     r.choice('isolation.mode', ISOLATION_MODES)
+    r.choice('isolation.predictor', BASE_PREDICTORS)
+    taps = r.num('isolation.wiener_taps', 2, 64)
+    if taps != int(taps):
+        r.fail('isolation.wiener_taps', f'= {taps!r} must be an integer')
+    r.num('isolation.wiener_spacing', 0.0, 0.1, lo_open=True)
+    r.num('isolation.wiener_window', 1.0, 120.0)
     for key in ('trim_gain', 'process_noise', 'process_noise_rotation', 'lu_kp', 'lu_ki',
                 'lu_kd', 'lu_delay_limit', 'stroke_margin'):
         r.num(f'isolation.{key}', 0.0)

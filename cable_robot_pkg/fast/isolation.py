@@ -67,6 +67,7 @@ if TYPE_CHECKING:
     from cable_robot_pkg.fast.focal_surface import FeedSupportChain
 
 MODES = ('lu', 'cheng', 'predictive')
+PREDICTORS = ('kalman', 'wiener')
 
 
 def _transition(dt):
@@ -220,6 +221,212 @@ class ConstantAccelerationKF:
         if order < 2:
             F[0, 2] = F[1, 2] = 0.0
         return F @ self.x
+
+
+class WienerPredictor:
+    """Adaptive multi-step linear predictor of a sampled vector signal, fitted by least squares
+    (a finite-impulse-response Wiener predictor, one per coordinate).
+
+    The value ``n`` frames ahead of the newest frame ``z_j`` is predicted as
+    ``z_j + sum_l w_l (z_{j - l s} - z_j)`` (``l = 1 .. taps - 1``, lag spacing ``s`` frames),
+    the weights ``w`` minimising the squared prediction error over the last ``window`` s of
+    the signal itself (refitted every ``refit`` s). Why: the base's vibration is dominated by
+    lightly damped modes of the cable-suspended trolley whose frequencies depend on the pose
+    and the wind; a predictor fitted to the measured motion extrapolates such oscillations
+    across the tracker latency far better than a polynomial ([p, v, a]) extrapolation, whose
+    error grows with (2 pi f tau)^3, and it accounts for the measurement noise by itself (the
+    least-squares weights are the Wiener weights for the measured spectrum). The differences
+    to ``z_j`` make the predictor exact for a constant signal.
+
+    Frames are on a regular grid of ``period`` s (the tracker's); a frame with the stamp of the
+    newest one updates it (mean of several views of the same body); a gap of up to ``max_gap``
+    frames is bridged by linear interpolation, a longer one restarts the history.
+
+    ``peak_max`` bounds each coordinate's ``max_f |H(f)|`` (:meth:`_bounded`): the predicted
+    base motion drives the legs, whose reaction moves the base again (Cheng et al.'s coupled
+    platforms), a loop that a predictor with a large high-frequency gain destabilises
+    (:func:`schedule_predictor` bounds the Kalman predictor the same way)."""
+
+    def __init__(self, m: int, period: float, taps: int = 16, spacing: int = 2,
+                 window: float = 20.0, refit: float = 1.0, min_span: float = 4.0,
+                 max_gap: int = 4, peak_max: float = math.inf):
+        self.m = int(m)
+        self.period = float(period)
+        self.taps = int(taps)
+        self.spacing = int(spacing)
+        self.capacity = int(round(window / period)) + self.taps * self.spacing + 64
+        self.refit = float(refit)
+        self.min_frames = int(round(min_span / period))
+        self.max_gap = int(max_gap)
+        self._buf = np.zeros((2 * self.capacity, self.m))   # history, oldest first
+        self._n = 0                    # rows of _buf in use
+        self.last_stamp = None
+        self.count = 0                 # views averaged into the newest frame
+        self.weights = {}              # horizon (frames) -> (m, taps - 1) weights
+        self.peaks = {}                # horizon -> (m,) max |H(f)| of the fitted weights
+        self.peak_max = float(peak_max)
+        freqs = np.geomspace(0.05, 0.5 / self.period, 240)
+        lags = self.spacing * np.arange(1, self.taps)
+        self._lag_phasors = np.exp(-2j * np.pi * lags[:, None] * freqs[None, :] * self.period) \
+            - 1.0                      # (taps - 1, freqs): H(f) = 1 + w . this
+        self.wanted = set()            # horizons asked for since the last fit
+        self.fit_stamp = None
+
+    def reset(self) -> None:
+        """Forget the history and the fitted weights (a dropout or a new chart)."""
+        self._n = 0
+        self.last_stamp = None
+        self.weights = {}
+        self.peaks = {}
+        self.fit_stamp = None
+
+    def add(self, stamp: float, value: ArrayLike) -> None:
+        """Fuse ``value`` (m,) captured at ``stamp``."""
+        value = np.asarray(value, float)
+        if self.last_stamp is not None:
+            gap = (stamp - self.last_stamp) / self.period
+            if abs(gap) < 0.25:               # another view of the newest frame
+                self.count += 1
+                self._buf[self._n - 1] += (value - self._buf[self._n - 1]) / self.count
+                return
+            steps = int(round(gap))
+            if steps < 1:
+                return
+            if steps > self.max_gap or abs(gap - steps) > 0.25:
+                self.reset()
+            else:
+                last = self._buf[self._n - 1].copy()
+                for k in range(1, steps):
+                    self._append(last + k / steps * (value - last))
+        self._append(value)
+        self.count = 1
+        self.last_stamp = stamp
+
+    def _append(self, value):
+        if self._n == len(self._buf):          # keep the newest ``capacity`` rows
+            self._buf[:self.capacity] = self._buf[self._n - self.capacity:self._n]
+            self._n = self.capacity
+        self._buf[self._n] = value
+        self._n += 1
+
+    @property
+    def history(self) -> np.ndarray:
+        """The stored frames (n, m), oldest first (at most ``window`` s and the taps)."""
+        return self._buf[max(0, self._n - self.capacity):self._n]
+
+    @property
+    def ready(self) -> bool:
+        """True once the weights for some horizon are fitted."""
+        return bool(self.weights)
+
+    def _regressors(self, z, start, stop):
+        """(m, stop - start, taps - 1): lagged differences to the frames start .. stop - 1."""
+        X = np.empty((self.m, stop - start, self.taps - 1))
+        for i in range(1, self.taps):
+            lag = self.spacing * i
+            X[:, :, i - 1] = (z[start - lag:stop - lag] - z[start:stop]).T
+        return X
+
+    def fit(self, horizons: Iterable[int]) -> bool:
+        """Least-squares weights for each horizon (frames) on the stored history."""
+        z = self.history
+        first = self.spacing * (self.taps - 1)
+        horizons = sorted({int(h) for h in horizons if h > 0})
+        if len(z) < self.min_frames or not horizons:
+            return False
+        stop = len(z) - max(horizons)
+        if stop - first < 4 * self.taps:
+            return False
+        X = self._regressors(z, first, stop)
+        Xt = np.transpose(X, (0, 2, 1))
+        XtX = Xt @ X
+        ridge = 1e-9 * np.trace(XtX, axis1=1, axis2=2)[:, None, None] * np.eye(self.taps - 1)
+        XtX = XtX + ridge + 1e-30 * np.eye(self.taps - 1)
+        for h in horizons:
+            y = np.ascontiguousarray((z[first + h:stop + h] - z[first:stop]).T)  # (m, K)
+            Xty = (Xt @ y[..., None])[..., 0]
+            w = np.linalg.solve(XtX, Xty[..., None])[..., 0]
+            peaks = self._peaks(w)
+            for a in np.flatnonzero(peaks > self.peak_max):
+                w[a], peaks[a] = self._bounded(XtX[a], Xty[a])
+            self.weights[h], self.peaks[h] = w, peaks
+        self.fit_stamp = self.last_stamp
+        return True
+
+    def _peaks(self, w):
+        """``max_f |H(f)|`` of weights ``w`` (..., taps - 1) (the delay has unit gain)."""
+        return np.abs(1.0 + w @ self._lag_phasors).max(axis=-1)
+
+    def _bounded(self, XtX, Xty, iterations=14):
+        """Weights of one coordinate whose peak gain stays under ``peak_max``: the
+        least-squares fit with white measurement noise of variance ``lam`` added to the
+        regressors (``XtX + lam K (I + 1 1^T)``, the covariance of lagged differences of white
+        noise), ``lam`` the smallest that meets the bound (bisection in log scale). More
+        assumed noise makes the Wiener weights trade in-band prediction for less high-frequency
+        gain; with no bound reachable the predictor tends to holding the latest sample."""
+        p = len(Xty)
+        noise = np.eye(p) + np.ones((p, p))
+        scale = np.trace(XtX) / p
+        lo, hi = -9.0, 2.0
+        best = None
+        for _ in range(iterations):
+            mid = 0.5 * (lo + hi)
+            w = np.linalg.solve(XtX + 10.0 ** mid * scale * noise, Xty)
+            peak = float(self._peaks(w))
+            if peak <= self.peak_max:
+                hi, best = mid, (w, peak)
+            else:
+                lo = mid
+        if best is None:
+            w = np.linalg.solve(XtX + 10.0 ** hi * scale * noise, Xty)
+            best = (w, float(self._peaks(w)))
+        return best
+
+    def peak(self, groups: int = 2) -> np.ndarray:
+        """Largest ``max_f |H(f)|`` (:meth:`response`, 0.05 Hz to Nyquist) over the fitted
+        horizons, per group of ``m / groups`` coordinates (position, rotation)."""
+        if not self.peaks:
+            return np.ones(groups)
+        p = np.max(np.stack(list(self.peaks.values())), axis=0)
+        return p.reshape(groups, -1).max(axis=1)
+
+    def response(self, horizon: int, freqs: ArrayLike) -> np.ndarray:
+        """Complex frequency response (m, len(freqs)) of the fitted predictor including the
+        ``horizon`` frames of delay it compensates: 1 is perfect prediction."""
+        w = self.weights[horizon]
+        f = np.asarray(freqs, float)
+        lags = self.spacing * np.arange(1, self.taps)
+        e = np.exp(-2j * np.pi * f[None, :] * lags[:, None] * self.period) - 1.0
+        return (1.0 + w @ e) * np.exp(-2j * np.pi * f * horizon * self.period)[None, :]
+
+    def predict(self, t: float) -> np.ndarray | None:
+        """Predicted value at ``t`` (None until fitted): linear between the two integer
+        horizons around ``t - last_stamp``; refits when ``refit`` s have passed."""
+        if self.last_stamp is None or not self._n:
+            return None
+        h = max((t - self.last_stamp) / self.period, 0.0)
+        n0 = int(math.floor(h + 1e-6))
+        frac = h - n0 if h - n0 > 1e-6 else 0.0
+        need = [n for n in (n0, n0 + 1 if frac > 0 else n0) if n > 0]
+        self.wanted.update(need)
+        due = self.fit_stamp is None or self.last_stamp - self.fit_stamp >= self.refit
+        if due or any(n not in self.weights for n in need):
+            self.fit(self.wanted | set(need))
+            self.wanted = set(need)
+        if any(n not in self.weights for n in need):
+            return None
+        if self._n <= self.spacing * (self.taps - 1):
+            return None
+        last = self._buf[self._n - 1]
+        lags = self._n - 1 - self.spacing * np.arange(1, self.taps)
+        r = (self._buf[lags] - last).T                                # (m, taps - 1)
+        out = []
+        for n in (n0, n0 + 1):
+            out.append(last if n == 0 else last + np.sum(self.weights[n] * r, axis=1)
+                       if n in self.weights else None)
+        if frac == 0.0 or out[1] is None:
+            return out[0]
+        return (1.0 - frac) * out[0] + frac * out[1]
 
 
 class PosePredictor:
@@ -377,9 +584,13 @@ class IsolationController:
                  position_std: float = 0.001, rotation_std: float = math.radians(0.01),
                  peak_gain_max: float = 4.0, vibration_band: tuple[float, float] = (0.3, 2.0),
                  slow_time: float = 1.0, chain: FeedSupportChain | None = None,
-                 fuse: bool = True, without: Iterable[str] = frozenset()):
+                 fuse: bool = True, without: Iterable[str] = frozenset(),
+                 predictor: str = 'wiener', wiener_taps: int = 16,
+                 wiener_spacing: float = 0.01, wiener_window: float = 20.0):
         if mode not in MODES:
             raise ValueError(f'unknown isolation mode {mode!r}')
+        if predictor not in PREDICTORS:
+            raise ValueError(f'unknown base predictor {predictor!r}')
         self.geometry = geometry
         self.mode = mode
         self.without = frozenset(without)
@@ -439,6 +650,14 @@ class IsolationController:
         self.hinges = SampleHistory()
         self.legs = SampleHistory()
         self.fk_guess = (self.nominal_p, self.nominal_R)
+        # Adaptive least-squares predictor of the fused base pose (``predictive`` mode with
+        # ``predictor: wiener``); the Kalman predictor above serves until it is fitted.
+        self.use_wiener = mode == 'predictive' and predictor == 'wiener'
+        self.wiener_taps = int(wiener_taps)
+        self.wiener_spacing = float(wiener_spacing)
+        self.wiener_window = float(wiener_window)
+        self.wiener = None
+        self.wiener_ref = None    # rotation the predictor's rotation vectors are relative to
 
     @classmethod
     def from_config(cls, cfg: FastConfig, mode: str | None = None,
@@ -458,7 +677,9 @@ class IsolationController:
                    rotation_std=math.radians(max(tr['noise_orientation_deg'], 1e-3)),
                    peak_gain_max=iso['peak_gain_max'],
                    vibration_band=iso['vibration_band'], chain=cfg.chain, fuse=iso['fuse'],
-                   without=frozenset(without))
+                   without=frozenset(without), predictor=iso['predictor'],
+                   wiener_taps=iso['wiener_taps'], wiener_spacing=iso['wiener_spacing'],
+                   wiener_window=iso['wiener_window'])
 
     # ------------------------------------------------------------------ inputs
     def set_target(self, t: float, position: ArrayLike, rotation: ArrayLike) -> None:
@@ -485,8 +706,31 @@ class IsolationController:
                     self.views += 0.05 * (count - self.views)
                 self._frame = [stamp, 1]
                 self._record(stamp, position, rotation)
+            if self.use_wiener:
+                self._wiener_add(stamp, position, rotation)
             return True
         return False
+
+    def _wiener_add(self, stamp, position, rotation):
+        """One view of the base into the least-squares predictor: position and rotation
+        vector relative to ``wiener_ref`` (re-anchored, and the history restarted, when the
+        base has turned more than 0.5 rad from it)."""
+        if self.wiener is None:
+            if self.period is None:
+                return
+            spacing = max(1, int(round(self.wiener_spacing / self.period)))
+            self.wiener = WienerPredictor(6, self.period, self.wiener_taps, spacing,
+                                          self.wiener_window, min_span=4.0,
+                                          max_gap=max(1, int(self.timeout / self.period)),
+                                          peak_max=self.peak_gain_max)
+        rotation = np.asarray(rotation, float)
+        phi = None if self.wiener_ref is None else \
+            rotvec_from_matrix(self.wiener_ref.T @ rotation)
+        if phi is None or np.linalg.norm(phi) > 0.5:
+            self.wiener_ref = rotation.copy()
+            self.wiener.reset()
+            phi = np.zeros(3)
+        self.wiener.add(stamp, np.concatenate([np.asarray(position, float), phi]))
 
     def add_hinge_state(self, t: float, angles: ArrayLike) -> None:
         """Orienting-mechanism encoder angles (alpha, beta) at time ``t``."""
@@ -660,8 +904,14 @@ class IsolationController:
     def _base_command(self, t):
         """Base pose the legs compensate at ``t``: the slow base reference plus the gain-scaled
         predicted vibration about it."""
+        x = None
         if not self.predict_base:
             t = self.base.last_stamp           # the latest estimate, at its capture time
+        elif self.wiener is not None:
+            x = self.wiener.predict(t)
+        if x is not None:          # its peak gain is bounded in the fit
+            self.loop_peak = self.wiener.peak()
+            return x[:3], self.wiener_ref @ matrix_from_rotvec(x[3:])
         p_b, R_b, _, _ = self.base.predict(t, order=2 if self.mode == 'predictive' else 1)
         if self.mode != 'predictive' or self.gain >= 1.0 or self.slow is None:
             return p_b, R_b
