@@ -509,13 +509,21 @@ class PaperPlanner:
         cands = [n for n in self.nodes if not n.covered]
         if not cands:
             return None
-        src = self.paths.nearest(self.pose[:2])
-        dist = self.paths.distances(src)
+        cost = self._path_costs([n.anchor for n in cands])
+        return min(zip(cost, [n.id for n in cands], cands))[2]
 
-        def cost(n):
-            j = self.paths.nearest(n.anchor)
-            return dist.get(j, 1e6) + math.dist(self.paths.xy[j], n.anchor), n.id
-        return min(cands, key=cost)
+    def _path_costs(self, points):
+        """Length of the way to each of ``points`` along the traced paths (the roadmap's
+        shortest path to the sample nearest each, plus the straight rest)."""
+        src = self.paths.nearest(self.pose[:2])
+        if src is None:
+            return [math.dist(self.pose[:2], q) for q in points]
+        dist = self.paths.distances(src)
+        out = []
+        for q in points:
+            j = self.paths.nearest(q)
+            out.append(dist.get(j, 1e6) + math.dist(self.paths.xy[j], q))
+        return out
 
     def update(self, t: float) -> Command:
         """Advance the planner at sim time t; returns the velocity command to send."""
@@ -834,7 +842,8 @@ class PaperPlanner:
             if not open_:
                 n.covered = True
                 return None
-            br = min(open_, key=lambda b: math.dist(b.start, self.pose[:2]))
+            cost = self._path_costs([b.start for b in open_])
+            br = min(zip(cost, range(len(open_)), open_))[2]   # nearest along traced paths
             self.task = {'branch': br}
             self._go_to(br.start, then='gvd')
             self.task['branch'] = br
