@@ -7,6 +7,7 @@ returns an exit code; :class:`paramotion.errors.UserError` is printed as one lin
 import argparse
 import importlib
 import sys
+from collections.abc import Sequence
 
 from paramotion.errors import UserError
 
@@ -36,7 +37,7 @@ BENCH_MODULES = [
 ]
 
 
-def build_parser():
+def build_parser() -> argparse.ArgumentParser:
     """Build the argument parser with every available subcommand."""
     parser = argparse.ArgumentParser(
         prog='paramotion',
@@ -56,7 +57,7 @@ def build_parser():
     return parser
 
 
-def main(argv=None):
+def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``paramotion`` console script."""
     parser = build_parser()
     args = parser.parse_args(argv)

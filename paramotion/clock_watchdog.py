@@ -16,8 +16,10 @@ long callback is not a stopped simulator.
 """
 import threading
 import time
+from collections.abc import Callable
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rclpy.node import Node
 
 from paramotion.qos import STATE_QOS
 
@@ -25,7 +27,8 @@ from paramotion.qos import STATE_QOS
 class ClockWatchdog:
     """Watch ``node``'s ROS clock; ``on_change(stopped, message)`` is called on each change."""
 
-    def __init__(self, node, timeout=2.0, period=0.5, on_change=None):
+    def __init__(self, node: Node, timeout: float = 2.0, period: float = 0.5,
+                 on_change: Callable[[bool, str], object] | None = None) -> None:
         if not timeout > 0.0 or not period > 0.0:
             raise ValueError(f'clock watchdog: timeout {timeout} and period {period} must be > 0')
         self.node = node
@@ -51,7 +54,7 @@ class ClockWatchdog:
                     return
                 raise
 
-    def check(self):
+    def check(self) -> None:
         """One watchdog pass (called by the thread; callable directly in tests)."""
         now_ns = self.node.get_clock().now().nanoseconds
         wall = time.monotonic()
@@ -86,13 +89,13 @@ class ClockWatchdog:
         if self.on_change is not None:
             self.on_change(self.stopped, message)
 
-    def stop(self):
+    def stop(self) -> None:
         """Stop watching (before the node is destroyed)."""
         self._stop.set()
         self._thread.join(2.0 * self.period + 1.0)
 
 
-def uses_sim_time(node):
+def uses_sim_time(node: Node) -> bool:
     """True if ``node`` runs on simulated time and does not own ``/clock`` itself."""
     from paramotion.clock import ClockSourceNode
     if isinstance(node, ClockSourceNode):
@@ -100,7 +103,7 @@ def uses_sim_time(node):
     return bool(node.get_parameter('use_sim_time').value)
 
 
-def attach(node, timeout=2.0, period=0.5):
+def attach(node: Node, timeout: float = 2.0, period: float = 0.5) -> ClockWatchdog | None:
     """Give ``node`` a :class:`ClockWatchdog` if it runs on sim time; returns it or None.
 
     A node with an ``on_clock_stopped(stopped, message)`` method is told about each change (to

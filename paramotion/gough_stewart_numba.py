@@ -220,8 +220,10 @@ def _newton(ck, r0, r1, r2, e0, e1, e2, e3, run, plat, base, tol, max_iter, a, l
 
 
 @njit(cache=True, nogil=True, error_model='numpy')
-def fk_batch_kernel(c, r, e, valid, plat, base, rho, tol, max_iter, max_condition,
-                    rot, iterations, converged, singular, cond):
+def fk_batch_kernel(c: np.ndarray, r: np.ndarray, e: np.ndarray, valid: np.ndarray,
+                    plat: np.ndarray, base: np.ndarray, rho: float, tol: float, max_iter: int,
+                    max_condition: float, rot: np.ndarray, iterations: np.ndarray,
+                    converged: np.ndarray, singular: np.ndarray, cond: np.ndarray) -> None:
     """Solve every pose in place: ``r`` (N, 3), ``e`` (N, 4) in, solution out; see module."""
     n = c.shape[0]
     a = np.empty((3, 3))
@@ -355,7 +357,11 @@ def _condition_one(jt, norms):
 
 
 @njit(cache=True, nogil=True, error_model='numpy')
-def fk_single_kernel(c, r0, r1, r2, e0, e1, e2, e3, plat, base, rho, tol, max_iter):
+def fk_single_kernel(c: np.ndarray, r0: float, r1: float, r2: float, e0: float, e1: float,
+                     e2: float, e3: float, plat: np.ndarray, base: np.ndarray, rho: float,
+                     tol: float, max_iter: int
+                     ) -> tuple[float, float, float, float, float, float, float, int, bool,
+                                bool, float]:
     """One warm-started solve: ``(r0, r1, r2, e0, e1, e2, e3, iterations, converged,
     singular, condition)`` with e normalised (NaN when it collapsed below 1e-6) and the
     condition of the homogenised inverse Jacobian at the solution (inf when not finite)."""

@@ -14,6 +14,9 @@ launch exit 1. A node that dies stops the launch with a non-zero exit naming it,
 ``respawn="true"`` (restarted after ``respawn_delay`` seconds). Before anything starts, a
 missing executable or a parameter the node does not declare is refused with one line.
 """
+from __future__ import annotations
+
+import argparse
 import importlib
 import inspect
 import os
@@ -23,14 +26,31 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING, Any, Self, TypeVar
 
-from paramotion.launch_xml import PACKAGE, LaunchError, load, recorded_topics
+from paramotion.launch_xml import (
+    PACKAGE,
+    LaunchDescription,
+    LaunchError,
+    NodeAction,
+    ParamValue,
+    load,
+    recorded_topics,
+)
+
+if TYPE_CHECKING:
+    from rclpy.node import Node
+
+    from paramotion.graph import Graph
+
+_T = TypeVar('_T')
 
 # --------------------------------------------------------------------------- executables
 
 
-def format_param(value):
+def format_param(value: object) -> str:
     """Render a parameter value for ``-p name:=value`` (YAML syntax, as ros2 run expects)."""
     if isinstance(value, bool):
         return 'true' if value else 'false'
@@ -41,7 +61,7 @@ def format_param(value):
     return repr(value)
 
 
-def console_scripts():
+def console_scripts() -> dict[str, str]:
     """paramotion's node executables: name -> 'module:function' (setup.py console scripts).
 
     Read from the installed package metadata; in a source tree whose setup.py lists more than
@@ -69,7 +89,7 @@ def console_scripts():
     return scripts
 
 
-def node_class(executable):
+def node_class(executable: str) -> type[Node]:
     """The node class that executable ``executable`` runs (its module's one node class)."""
     from rclpy.node import Node
     target = console_scripts().get(executable)
@@ -86,7 +106,7 @@ def node_class(executable):
     return leaves[0]
 
 
-def find_executable(package, executable):
+def find_executable(package: str, executable: str) -> str:
     """Path of ``executable`` of ``package`` as ``ros2 run`` finds it: ``lib/<package>/`` under
     each ament prefix, then (for paramotion's own console scripts) the Python environment's
     scripts directory, where ``pip install`` puts them. LaunchError (one line) if missing."""
@@ -111,7 +131,7 @@ def find_executable(package, executable):
                       f"{', '.join(dict.fromkeys(looked))})")
 
 
-def check_parameters(desc):
+def check_parameters(desc: LaunchDescription) -> None:
     """Refuse, with one line, a ``<param>`` that the node does not declare."""
     for action in desc.nodes:
         if action.package != PACKAGE:
@@ -127,7 +147,7 @@ def check_parameters(desc):
                     f"{', '.join(p.name for p in getattr(cls, 'PARAMS', ()))})")
 
 
-def node_command(action, executable_path):
+def node_command(action: NodeAction, executable_path: str) -> list[str]:
     """The command line that starts ``action`` (a launch_xml.NodeAction)."""
     cmd = [executable_path] + list(action.args) + ['--ros-args']
     if action.name:
@@ -143,7 +163,8 @@ def node_command(action, executable_path):
 
 
 # --------------------------------------------------------------------------- one process
-def compose(graph, desc, extra_params=None):
+def compose(graph: Graph, desc: LaunchDescription,
+            extra_params: dict[str, dict[str, Any]] | None = None) -> dict[str, Node]:
     """Add the launch description's nodes to ``graph`` (one process, one executor), in file
     order, with their parameters, names, namespaces and remappings; returns {label: node}.
 
@@ -166,7 +187,9 @@ def compose(graph, desc, extra_params=None):
     return nodes
 
 
-def graph_from_launch(graph, name, launch_args=None, extra_params=None):
+def graph_from_launch(graph: Graph, name: str, launch_args: dict[str, object] | None = None,
+                      extra_params: dict[str, dict[str, Any]] | None = None
+                      ) -> tuple[dict[str, Node], list[str]]:
     """Read launch file ``name`` with ``launch_args`` plus ``lockstep:=true`` and
     ``record:=true`` and compose its nodes in ``graph``: the scenario runners' one-process
     version of the graph. Returns ({label: node}, recorded topics)."""
@@ -266,8 +289,10 @@ class Launcher:
     process group, as under ``ros2 launch``.
     """
 
-    def __init__(self, desc, echo=None, log_dir=None, sigterm_timeout=5.0, sigkill_timeout=5.0,
-                 env=None, own_sessions=False):
+    def __init__(self, desc: LaunchDescription, echo: Callable[[str], None] | None = None,
+                 log_dir: str | os.PathLike[str] | None = None, sigterm_timeout: float = 5.0,
+                 sigkill_timeout: float = 5.0, env: dict[str, str] | None = None,
+                 own_sessions: bool = False) -> None:
         self.desc = desc
         self.echo_lock = threading.Lock()
         self._echo = echo or self._print
@@ -283,11 +308,12 @@ class Launcher:
     def _print(self, line):
         print(line, flush=True)
 
-    def echo(self, line):
+    def echo(self, line: str) -> None:
+        """Print ``line`` (one process's lines never interleave with another's)."""
         with self.echo_lock:
             self._echo(line)
 
-    def prepare(self):
+    def prepare(self) -> Self:
         """Resolve every executable and check every parameter; nothing starts on error."""
         paths = []
         for a in self.desc.nodes:
@@ -307,14 +333,15 @@ class Launcher:
                                     own_session=self.own_sessions))
         return self
 
-    def start(self):
+    def start(self) -> Self:
+        """Start every node in file order (preparing first if needed)."""
         if not self.procs:
             self.prepare()
         for p in self.procs:
             p.start()
         return self
 
-    def poll(self):
+    def poll(self) -> bool:
         """Handle exited processes; False when the launch is over (all gone or one died)."""
         now = time.monotonic()
         alive = False
@@ -344,7 +371,7 @@ class Launcher:
                 self.failed = p
         return alive and self.failed is None
 
-    def shutdown(self):
+    def shutdown(self) -> dict[str, int]:
         """SIGINT every process; SIGTERM after ``sigterm_timeout``, SIGKILL after
         ``sigkill_timeout`` more. Reports each exit; returns {label: exit code}."""
         self.stopping = True
@@ -377,7 +404,7 @@ class Launcher:
                 p.log.close()
         return codes
 
-    def failure_message(self):
+    def failure_message(self) -> str | None:
         """One line naming the node that died while the launch ran, or None."""
         p = self.failed
         if p is not None:
@@ -385,7 +412,7 @@ class Launcher:
                     f'{p.popen.returncode}')
         return None
 
-    def unclean_message(self):
+    def unclean_message(self) -> str | None:
         """One line naming the nodes that did not exit 0 when stopped, or None."""
         if self.unclean:
             return 'stopped, but not cleanly: ' + ', '.join(
@@ -394,7 +421,8 @@ class Launcher:
         return None
 
 
-def run(desc, log_dir=None, period=0.05):
+def run(desc: LaunchDescription, log_dir: str | os.PathLike[str] | None = None,
+        period: float = 0.05) -> int:
     """``paramotion launch``: start, watch until Ctrl-C/SIGTERM or a node dies, stop.
 
     Returns 0 after a requested stop where every node exited 0, 1 if a node died or did not
@@ -457,7 +485,7 @@ def _cli(args):
     return run(desc, log_dir=args.log_dir)
 
 
-def register(subparsers):
+def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``paramotion launch``."""
     parser = subparsers.add_parser(
         'launch', help='start a launch file, one process per node (like ros2 launch)',
@@ -479,7 +507,10 @@ def register(subparsers):
 class NodeProcess:
     """One node running in a child process (``python -m module``), output to a log file."""
 
-    def __init__(self, module, name=None, params=None, remap=None, env=None, log_path=None):
+    def __init__(self, module: str, name: str | None = None,
+                 params: dict[str, ParamValue] | None = None,
+                 remap: dict[str, str] | None = None, env: dict[str, str] | None = None,
+                 log_path: str | os.PathLike[str] | None = None) -> None:
         args = [sys.executable, '-m', module, '--ros-args']
         if name:
             args += ['-r', f'__node:={name}']
@@ -494,7 +525,7 @@ class NodeProcess:
                                      stdout=self._log, stderr=subprocess.STDOUT,
                                      preexec_fn=_child_setup(), start_new_session=True)
 
-    def interrupt(self, timeout=10.0):
+    def interrupt(self, timeout: float = 10.0) -> int | None:
         """SIGINT (clean shutdown), then SIGKILL if it does not exit within ``timeout``."""
         if self.proc.poll() is None:
             os.killpg(self.proc.pid, signal.SIGINT)
@@ -505,7 +536,7 @@ class NodeProcess:
         self._close_log()
         return self.proc.returncode
 
-    def kill(self):
+    def kill(self) -> None:
         """SIGKILL, no clean-up (simulates a crashed process)."""
         if self.proc.poll() is None:
             os.killpg(self.proc.pid, signal.SIGKILL)
@@ -518,7 +549,7 @@ class NodeProcess:
             self._log = None
 
 
-def wait_until(predicate, timeout, period=0.05):
+def wait_until(predicate: Callable[[], _T], timeout: float, period: float = 0.05) -> _T | bool:
     """Poll ``predicate`` until true or ``timeout`` seconds pass; returns its last value."""
     end = time.monotonic() + timeout
     while time.monotonic() < end:

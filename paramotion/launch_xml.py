@@ -27,8 +27,10 @@ import os
 import re
 import sys
 import xml.etree.ElementTree as ET
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 from xml.parsers import expat
 
 import yaml
@@ -36,6 +38,11 @@ import yaml
 from paramotion.errors import UserError
 
 PACKAGE = 'paramotion'
+#: A parameter value as ``ros2 launch`` types it (see :func:`typed_value`).
+ParamValue = bool | int | float | str | list[bool] | list[int] | list[float] | list[str]
+#: Attribute text split by :func:`parse_text`: literal strings and ``(name, arguments)``
+#: substitutions, each argument a list of such parts.
+Part = str | tuple[str, list[list[Any]]]
 _REPO = Path(__file__).resolve().parents[1]
 
 
@@ -51,18 +58,18 @@ class NodeAction:
     executable: str
     name: str = ''
     namespace: str = ''
-    params: dict = field(default_factory=dict)
-    remaps: list = field(default_factory=list)
-    env: dict = field(default_factory=dict)
-    args: list = field(default_factory=list)
-    ros_args: list = field(default_factory=list)
+    params: dict[str, ParamValue] = field(default_factory=dict)
+    remaps: list[tuple[str, str]] = field(default_factory=list)
+    env: dict[str, str] = field(default_factory=dict)
+    args: list[str] = field(default_factory=list)
+    ros_args: list[str] = field(default_factory=list)
     output: str = 'log'
     respawn: bool = False
     respawn_delay: float = 0.0
     where: str = ''
 
     @property
-    def label(self):
+    def label(self) -> str:
         """Node name if given, else the executable (how logs and errors refer to it)."""
         return self.name or self.executable
 
@@ -72,9 +79,9 @@ class ArgDecl:
     """One ``<arg>`` declaration."""
 
     name: str
-    default: object = None          # raw (unsubstituted) default text, None if required
+    default: str | None = None      # raw (unsubstituted) default text, None if required
     description: str = ''
-    choices: tuple = ()
+    choices: tuple[str, ...] = ()
 
 
 @dataclass
@@ -83,11 +90,11 @@ class LaunchDescription:
     and the nodes to start (after ``if``/``unless``)."""
 
     path: Path
-    args: dict
-    values: dict
-    nodes: list
+    args: dict[str, ArgDecl]
+    values: dict[str, str]
+    nodes: list[NodeAction]
 
-    def node(self, name):
+    def node(self, name: str) -> NodeAction:
         """The node called ``name`` (node name or executable)."""
         for n in self.nodes:
             if n.label == name:
@@ -96,7 +103,7 @@ class LaunchDescription:
 
 
 # ----------------------------------------------------------------------------- files
-def share_directory(package):
+def share_directory(package: str) -> str:
     """``$(find-pkg-share PACKAGE)``: the package's installed share directory.
 
     Looked up in the ament index (``AMENT_PREFIX_PATH``), then in this Python's prefix (a pip
@@ -107,7 +114,7 @@ def share_directory(package):
     return str(Path(prefix) / 'share' / package) if prefix != str(_REPO) else str(_REPO)
 
 
-def prefix_directory(package):
+def prefix_directory(package: str) -> str:
     """``$(find-pkg-prefix PACKAGE)``: the install prefix holding the package."""
     for prefix in os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep):
         if prefix and (Path(prefix) / 'share' / 'ament_index' / 'resource_index' / 'packages'
@@ -121,7 +128,7 @@ def prefix_directory(package):
                       f'installed under {sys.prefix}/share)')
 
 
-def launch_directories():
+def launch_directories() -> list[Path]:
     """Where ``paramotion launch NAME`` looks for NAME.launch.xml, in order."""
     dirs = []
     try:
@@ -133,7 +140,7 @@ def launch_directories():
     return dirs
 
 
-def find_launch_file(spec):
+def find_launch_file(spec: str) -> Path:
     """A launch file from a path, a file name or a short name (``coverage``)."""
     path = Path(spec)
     if path.suffix == '.xml' and path.exists():
@@ -148,7 +155,7 @@ def find_launch_file(spec):
     raise LaunchError(f"launch file '{spec}' not found (known: {', '.join(known)})")
 
 
-def parse_cli_args(items):
+def parse_cli_args(items: Iterable[str]) -> dict[str, str]:
     """``['name:=value', ...]`` (``ros2 launch`` argument syntax) into a dict."""
     out = {}
     for item in items:
@@ -159,7 +166,7 @@ def parse_cli_args(items):
     return out
 
 
-def arg_text(value):
+def arg_text(value: object) -> str:
     """A Python value as launch-argument text (what one would type after ``name:=``)."""
     if isinstance(value, bool):
         return 'true' if value else 'false'
@@ -185,7 +192,7 @@ def _fix_scalar(v):
     return v
 
 
-def typed_value(text):
+def typed_value(text: str) -> ParamValue:
     """A parameter value from its text as ``ros2 launch`` types it (YAML scalars/lists)."""
     try:
         value = yaml.safe_load(text)
@@ -208,7 +215,7 @@ def typed_value(text):
     return text
 
 
-def to_bool(text, what):
+def to_bool(text: object, what: str) -> bool:
     """A condition value: true/false/1/0 (any case), as ``ros2 launch`` accepts."""
     t = str(text).strip().lower()
     if t in ('true', '1'):
@@ -232,7 +239,7 @@ _CMPOPS = {ast.Eq: lambda a, b: a == b, ast.NotEq: lambda a, b: a != b,
            ast.In: lambda a, b: a in b, ast.NotIn: lambda a, b: a not in b}
 
 
-def safe_eval(expr):
+def safe_eval(expr: str) -> Any:
     """Evaluate the expression subset of ``$(eval ...)`` without Python's ``eval``."""
     def ev(n):
         if isinstance(n, ast.Expression):
@@ -333,7 +340,7 @@ def _parse_subst(text, i, what):
     return (name, args), end
 
 
-def parse_text(text, what):
+def parse_text(text: str, what: str) -> list[Part]:
     """Split attribute text into literal strings and ``(name, args)`` substitutions."""
     parts, i, lit = [], 0, ''
     while i < len(text):
@@ -596,7 +603,7 @@ class _Reader:
         self.nodes.append(node)
 
 
-def recorded_topics(desc):
+def recorded_topics(desc: LaunchDescription) -> list[str]:
     """The topics the launch file's recorder records (its ``topics`` parameter)."""
     for action in desc.nodes:
         if action.executable == 'bag_recorder':
@@ -605,7 +612,8 @@ def recorded_topics(desc):
     raise LaunchError(f'{desc.path}: no bag_recorder node (pass record:=true)')
 
 
-def load(spec, launch_args=None):
+def load(spec: str | os.PathLike[str], launch_args: dict[str, object] | None = None
+         ) -> LaunchDescription:
     """Read launch file ``spec`` (path or short name) with ``launch_args`` (name -> value;
     values may be Python values, converted with :func:`arg_text`)."""
     path = find_launch_file(str(spec))
@@ -613,7 +621,6 @@ def load(spec, launch_args=None):
     return _Reader(path, values).read()
 
 
-__all__ = ['ArgDecl', 'LaunchDescription', 'LaunchError', 'NodeAction', 'arg_text',
-           'find_launch_file', 'load', 'parse_cli_args', 'recorded_topics', 'safe_eval',
-           'share_directory',
-           'typed_value']
+__all__ = ['ArgDecl', 'LaunchDescription', 'LaunchError', 'NodeAction', 'ParamValue', 'Part',
+           'arg_text', 'find_launch_file', 'load', 'parse_cli_args', 'recorded_topics',
+           'safe_eval', 'share_directory', 'typed_value']

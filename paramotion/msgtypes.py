@@ -1,10 +1,11 @@
 """Resolve ROS 2 message types by name ('sensor_msgs/msg/Range') without rosidl_runtime_py."""
 import importlib
+from typing import Any
 
 from paramotion.errors import UserError
 
 
-def message_class(msgtype):
+def message_class(msgtype: str) -> type[Any]:
     """Return the Python class of ``msgtype`` ('pkg/msg/Type' or 'pkg/Type')."""
     parts = msgtype.split('/')
     if len(parts) == 2:
@@ -18,7 +19,7 @@ def message_class(msgtype):
         raise UserError(f'message type {msgtype!r}: not installed') from None
 
 
-def type_name(msg_or_cls):
+def type_name(msg_or_cls: object) -> str:
     """'pkg/msg/Type' of an rclpy message instance or class."""
     cls = msg_or_cls if isinstance(msg_or_cls, type) else type(msg_or_cls)
     module = cls.__module__.split('.')

@@ -111,7 +111,7 @@ def _cmd(args: argparse.Namespace) -> int:
     return 0
 
 
-def register(subparsers) -> None:
+def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``paramotion report`` to the command line."""
     p = subparsers.add_parser(
         'report', help='rerun the headline measurements and write docs/results/',

@@ -29,6 +29,8 @@ tear-down owns nothing of the node's, but costs CPU: on the loaded 2-core machin
 for the smallest node and 2.5 s for the climber simulator (PyBullet, SciPy), longer under a
 whole graph, beyond the 5 s launch waits before it escalates to SIGTERM.
 """
+from __future__ import annotations
+
 import ctypes
 import faulthandler
 import logging
@@ -36,6 +38,11 @@ import os
 import signal
 import sys
 import threading
+from typing import TYPE_CHECKING, NoReturn, Self
+
+if TYPE_CHECKING:
+    from rclpy.node import Node
+    from rclpy.signals import SignalHandlerOptions
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
@@ -43,13 +50,13 @@ SIGNALS = (signal.SIGINT, signal.SIGTERM)
 class ShutdownSignals:
     """The signal policy of one node process (see the module docstring)."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         self.received = []          # signal numbers, in arrival order
         self.interrupt = True       # raise KeyboardInterrupt on the first signal
         self._previous = {}
         self.ignored = set()        # signals the process was started with ignored
 
-    def install(self):
+    def install(self) -> Self:
         """Take over SIGINT and SIGTERM; call before ``rclpy.init`` (rclpy chains to it).
 
         A signal the process was started with ignored stays ignored: a shell without job
@@ -65,7 +72,7 @@ class ShutdownSignals:
         faulthandler.register(signal.SIGUSR1, all_threads=True)
         return self
 
-    def rclpy_options(self):
+    def rclpy_options(self) -> SignalHandlerOptions:
         """The ``signal_handler_options`` for ``rclpy.init``: the signals not ignored."""
         from rclpy.signals import SignalHandlerOptions
         handled = set(SIGNALS) - self.ignored
@@ -77,12 +84,12 @@ class ShutdownSignals:
             return SignalHandlerOptions.SIGINT
         return SignalHandlerOptions.NO
 
-    def spinning(self):
+    def spinning(self) -> None:
         """The node spins: from now on rclpy's handler stops it, nothing is raised."""
         self.interrupt = False
 
     @property
-    def requested(self):
+    def requested(self) -> bool:
         """True once a SIGINT or SIGTERM has arrived."""
         return bool(self.received)
 
@@ -91,13 +98,13 @@ class ShutdownSignals:
         if self.interrupt and len(self.received) == 1:
             raise KeyboardInterrupt
 
-    def finish(self):
+    def finish(self) -> None:
         """Ignore both signals from now on (the process is about to exit)."""
         self.interrupt = False
         for sig in SIGNALS:
             signal.signal(sig, signal.SIG_IGN)
 
-    def restore(self):
+    def restore(self) -> None:
         """Put back the handlers found by :meth:`install` (for use inside a longer program)."""
         self.interrupt = False
         for sig, handler in self._previous.items():
@@ -116,7 +123,7 @@ class ShutdownWaker:
     triggers a guard condition of the node, which ends the executor's wait.
     """
 
-    def __init__(self, node, period=0.2):
+    def __init__(self, node: Node, period: float = 0.2) -> None:
         self.node = node
         self.period = float(period)
         self._guard = node.create_guard_condition(lambda: None)
@@ -133,13 +140,13 @@ class ShutdownWaker:
                 except Exception:   # being destroyed: the executor has stopped anyway
                     return
 
-    def stop(self):
+    def stop(self) -> None:
         """Stop the thread (before the node is destroyed)."""
         self._stop.set()
         self._thread.join(2.0)
 
 
-def exit_now(code=0):
+def exit_now(code: int = 0) -> NoReturn:
     """Flush Python's and C's output buffers and end the process with ``code`` at once."""
     for stream in (sys.stdout, sys.stderr):
         try:

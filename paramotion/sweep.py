@@ -12,18 +12,24 @@ and cases running side by side never hear each other.
 Results come back in case order whatever the completion order, so a Dask run writes exactly
 what the serial run (``--serial``) writes. See docs/sweeps.md for a multi-machine cluster.
 """
+import argparse
 import os
+from collections.abc import Callable, Iterable, Sequence
+from typing import Any, TypeVar
 
 from paramotion.backend import usable_cores
 from paramotion.errors import UserError
 
+_Case = TypeVar('_Case')
+_Result = TypeVar('_Result')
 
-def default_workers():
+
+def default_workers() -> int:
     """Cores this process may use (the affinity mask, not the machine's count)."""
     return usable_cores()
 
 
-def add_dask_args(parser):
+def add_dask_args(parser: argparse.ArgumentParser) -> None:
     """Add ``--scheduler``, ``--workers`` and ``--serial`` to a sweep's argument parser."""
     parser.add_argument('--scheduler', default=None, metavar='tcp://HOST:8786',
                         help='run the cases on this existing Dask scheduler (default: a local '
@@ -34,14 +40,14 @@ def add_dask_args(parser):
                         help='run the cases one after the other in this process (no Dask)')
 
 
-def run_args(args):
+def run_args(args: argparse.Namespace) -> dict[str, Any]:
     """The :func:`run_tasks` keyword arguments from parsed :func:`add_dask_args` options."""
     return {'scheduler': getattr(args, 'scheduler', None),
             'workers': getattr(args, 'workers', None),
             'serial': getattr(args, 'serial', False)}
 
 
-def private_call(fn, case):
+def private_call(fn: Callable[[_Case], _Result], case: _Case) -> _Result:
     """``fn(case)`` with ``ROS_DOMAIN_ID`` unset, so every Graph the case builds takes a private
     random domain with discovery off. A ``ROS_DOMAIN_ID`` set to watch one run live would
     otherwise put all the cases running side by side in one shared domain where they hear each
@@ -55,7 +61,8 @@ def private_call(fn, case):
             os.environ['ROS_DOMAIN_ID'] = old
 
 
-def private_call_chunk(fn, chunk):
+def private_call_chunk(fn: Callable[[_Case], _Result], chunk: Iterable[_Case]
+                       ) -> list[_Result]:
     """:func:`private_call` over a chunk of cases, results in chunk order. One task per chunk
     instead of one per case: the scheduler's overhead per task (milliseconds) would otherwise
     exceed a small case's work, and arrays shared by the cases of a chunk (grids, rotation
@@ -64,7 +71,8 @@ def private_call_chunk(fn, chunk):
     return [private_call(fn, case) for case in chunk]
 
 
-def chunked(cases, workers, per_worker=4):
+def chunked(cases: Sequence[_Case], workers: int, per_worker: int = 4
+            ) -> list[Sequence[_Case]]:
     """``cases`` cut into consecutive chunks, about ``per_worker`` chunks per worker so that
     the load still balances when cases differ in cost."""
     n = max(1, min(len(cases), int(workers) * per_worker))
@@ -77,8 +85,9 @@ def _progress_bar(total, desc, enabled):
     return tqdm(total=total, desc=desc, unit='case', disable=not enabled, leave=True)
 
 
-def run_tasks(fn, cases, scheduler=None, workers=None, progress=True, serial=False,
-              desc='cases'):
+def run_tasks(fn: Callable[[_Case], _Result], cases: Iterable[_Case], scheduler: str | None = None,
+              workers: int | None = None, progress: bool = True, serial: bool = False,
+              desc: str = 'cases') -> list[_Result]:
     """``[fn(case) for case in cases]``, the calls spread over a Dask cluster.
 
     ``fn`` must be a module-level (picklable) function and each case picklable. With

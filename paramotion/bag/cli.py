@@ -1,11 +1,13 @@
 """``paramotion bag record|play|info|reindex``: the bag tools without the ros2 CLI."""
+import argparse
 import faulthandler
+import os
 import sys
 import time
 
 import yaml
 
-from paramotion.bag.reader import bag_info
+from paramotion.bag.reader import BagInfo, TopicInfo, bag_info
 from paramotion.errors import UserError
 
 
@@ -96,7 +98,7 @@ def _play(args):
     return 0
 
 
-def format_info(info):
+def format_info(info: BagInfo) -> str:
     """Text like ``ros2 bag info``."""
     lines = [f'Files:             {info.mcap_path}',
              f'Bag size:          {info.mcap_path.stat().st_size} B',
@@ -126,7 +128,8 @@ def _info(args):
     return 0
 
 
-def metadata_yaml(topics, message_count, start_ns, end_ns, file_name):
+def metadata_yaml(topics: dict[str, TopicInfo], message_count: int, start_ns: int, end_ns: int,
+                  file_name: str) -> str:
     """rosbag2 ``metadata.yaml`` text (version 9, one MCAP file) for ``topics`` (TopicInfo)."""
     from paramotion.bag.writer import typestore
     store = typestore()
@@ -157,7 +160,7 @@ def metadata_yaml(topics, message_count, start_ns, end_ns, file_name):
     return yaml.safe_dump(doc, sort_keys=False)
 
 
-def reindex(bag):
+def reindex(bag: str | os.PathLike[str]) -> BagInfo:
     """Make a bag whose recorder was killed complete again (``ros2 bag reindex`` plus ``mcap
     recover``); returns the :class:`~paramotion.bag.reader.BagInfo` of the result.
 
@@ -196,7 +199,7 @@ def _reindex(args):
     return 0
 
 
-def register(subparsers):
+def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``paramotion bag`` and its subcommands."""
     parser = subparsers.add_parser('bag', help='record, play and inspect rosbag2 MCAP bags',
                                    description='Record, play and inspect rosbag2 MCAP bags.')

@@ -8,6 +8,8 @@ their recorded topics (or remapped ones) with the QoS they were recorded with. T
 process, :class:`paramotion.graph.Graph`) replay is exact and as fast as the machine allows;
 free-running it follows ``real_time_factor``.
 """
+from typing import Any
+
 from paramotion.bag.qos_yaml import adapted_subscription_qos, profiles_from_yaml
 from paramotion.bag.reader import bag_info, read_messages
 from paramotion.clock import NS, ClockSourceNode
@@ -16,7 +18,7 @@ from paramotion.msgtypes import message_class
 from paramotion.node import Param, run_node
 
 
-def parse_remaps(items):
+def parse_remaps(items: list[str]) -> dict[str, str]:
     """['/a:=/b', ...] -> {'/a': '/b'}; a malformed entry is a UserError naming it."""
     remaps = {}
     for item in items:
@@ -40,7 +42,7 @@ class BagPlayerNode(ClockSourceNode):
               read_only=True),
     )
 
-    def __init__(self, node_name='bag_player', **kwargs):
+    def __init__(self, node_name: str = 'bag_player', **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
         if not self.params.bag:
             raise UserError("parameter 'bag' is empty: give the bag directory to play")
@@ -67,11 +69,12 @@ class BagPlayerNode(ClockSourceNode):
         self.published = 0
 
     @property
-    def finished(self):
+    def finished(self) -> bool:
         """True once every message has been published."""
         return self._next >= len(self.messages)
 
-    def publish_state(self):
+    def publish_state(self) -> None:
+        """Publish every message recorded up to the current sim time."""
         msgs = self.messages
         while self._next < len(msgs) and msgs[self._next].log_time_ns <= self.sim_time_ns:
             msg = msgs[self._next]
@@ -80,7 +83,8 @@ class BagPlayerNode(ClockSourceNode):
             self.published += 1
 
 
-def main(args=None):
+def main(args: list[str] | None = None) -> None:
+    """Console script ``bag_player``."""
     run_node(BagPlayerNode, args)
 
 

@@ -33,7 +33,7 @@ def _time(value):
     return Duration(seconds=sec, nanoseconds=nsec)
 
 
-def profiles_from_yaml(text):
+def profiles_from_yaml(text: str | None) -> list[QoSProfile]:
     """Parse an ``offered_qos_profiles`` string into rclpy ``QoSProfile`` objects."""
     try:
         items = yaml.safe_load(text) if text else []
@@ -62,7 +62,7 @@ def profiles_from_yaml(text):
     return profiles
 
 
-def adapted_subscription_qos(profiles, depth=1000):
+def adapted_subscription_qos(profiles: list[QoSProfile], depth: int = 1000) -> QoSProfile:
     """The QoS a recorder or player should use to match all ``profiles`` (as rosbag2 does).
 
     Reliable only if every publisher offers reliable; transient-local only if every publisher

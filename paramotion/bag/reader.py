@@ -7,8 +7,10 @@ described in :attr:`BagInfo.problem` and, for strict readers, raised as :class:`
 one-line message naming the file and how many messages were recovered.
 """
 import os
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import yaml
 from mcap.exceptions import McapError
@@ -48,7 +50,7 @@ class BagInfo:
 
     path: Path
     mcap_path: Path
-    topics: dict = field(default_factory=dict)
+    topics: dict[str, TopicInfo] = field(default_factory=dict)
     message_count: int = 0
     start_ns: int = 0
     end_ns: int = 0
@@ -57,15 +59,17 @@ class BagInfo:
     problem: str = ''
 
     @property
-    def duration_s(self):
+    def duration_s(self) -> float:
+        """Time from the first to the last message (s)."""
         return max(0, self.end_ns - self.start_ns) * 1e-9
 
     @property
-    def complete(self):
+    def complete(self) -> bool:
+        """Closed, with its ``metadata.yaml`` and nothing lost."""
         return self.closed and self.has_metadata and not self.problem
 
 
-def find_mcap(path):
+def find_mcap(path: str | os.PathLike[str]) -> tuple[Path, Path]:
     """Return (bag directory, .mcap file) for a bag directory or an .mcap file path."""
     path = Path(path)
     if path.is_file() and path.suffix == '.mcap':
@@ -103,7 +107,8 @@ def _iter_records(mcap_path, info):
                             f'({kind}); recovered {info.message_count} messages')
 
 
-def scan(path, topics=None, want_messages=False):
+def scan(path: str | os.PathLike[str], topics: set[str] | None = None,
+         want_messages: bool = False) -> tuple[BagInfo, list[BagMessage] | None]:
     """Scan a bag; returns ``(info, messages)`` where messages is a list if requested."""
     bag_dir, mcap_path = find_mcap(path)
     info = BagInfo(path=bag_dir, mcap_path=mcap_path,
@@ -142,12 +147,13 @@ def scan(path, topics=None, want_messages=False):
     return info, messages
 
 
-def bag_info(path):
+def bag_info(path: str | os.PathLike[str]) -> BagInfo:
     """Scan a bag and return its :class:`BagInfo` (never raises for damage; see ``problem``)."""
     return scan(path)[0]
 
 
-def read_messages(path, topics=None, strict=False):
+def read_messages(path: str | os.PathLike[str], topics: Iterable[str] | None = None,
+                  strict: bool = False) -> list[BagMessage]:
     """Return the list of :class:`BagMessage` of ``topics`` (all if None) in file order.
 
     With ``strict`` a damaged/unfinished bag raises :class:`BagReadError`; otherwise the messages
@@ -159,7 +165,7 @@ def read_messages(path, topics=None, strict=False):
     return messages
 
 
-def deserialize(message):
+def deserialize(message: BagMessage) -> Any:
     """Turn a :class:`BagMessage` into an rclpy message object (imports rclpy lazily)."""
     from rclpy.serialization import deserialize_message
 

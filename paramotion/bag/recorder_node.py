@@ -18,8 +18,10 @@ record``. Samples published before the recorder matched a publisher are not reco
 the publisher is transient-local (latched); free-running simulators hold time at zero until
 the recorder listens (``wait_for_clock_subscribers``/``wait_for_matched``).
 """
+from typing import Any
+
 from rclpy.clock import Clock, ClockType
-from rclpy.qos import HistoryPolicy
+from rclpy.qos import HistoryPolicy, QoSProfile
 
 from paramotion.bag.qos_yaml import adapted_subscription_qos
 from paramotion.bag.writer import BagWriter
@@ -41,7 +43,7 @@ class BagRecorderNode(ParamotionNode):
               min=0.05, max=10.0, read_only=True),
     )
 
-    def __init__(self, node_name='bag_recorder', **kwargs):
+    def __init__(self, node_name: str = 'bag_recorder', **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
         self.wanted = {t for t in self.params.topics if t}
         self.writer = BagWriter(self.params.output, flush_period=self.params.flush_period)
@@ -52,7 +54,7 @@ class BagRecorderNode(ParamotionNode):
         self._discovery_timer = self.create_timer(
             self.params.discovery_period, self.discover, clock=steady)
 
-    def discover(self):
+    def discover(self) -> list[str]:
         """Subscribe to every wanted topic that has a publisher and is not recorded yet.
 
         ``/clock`` is subscribed last, once every other wanted topic is recorded and matched
@@ -80,11 +82,11 @@ class BagRecorderNode(ParamotionNode):
         return all(sub.get_publisher_count() > 0 for topic, sub in self._subs.items()
                    if topic != '/clock')
 
-    def missing_topics(self):
+    def missing_topics(self) -> list[str]:
         """Wanted topics not subscribed yet (no publisher seen)."""
         return sorted(self.wanted - set(self._subs))
 
-    def subscribe(self, topic, msgtype, offered):
+    def subscribe(self, topic: str, msgtype: str, offered: list[QoSProfile]) -> None:
         """Start recording ``topic`` of ``msgtype`` with the publishers' ``offered`` QoS."""
         self.writer.add_topic(topic, msgtype, offered)
         qos = adapted_subscription_qos(offered)
@@ -96,7 +98,8 @@ class BagRecorderNode(ParamotionNode):
     def _on_message(self, topic, data):
         self.writer.write(topic, self.get_clock().now().nanoseconds, data)
 
-    def destroy_node(self):
+    def destroy_node(self) -> None:
+        """Stop recording and close the bag (its summary and ``metadata.yaml``)."""
         for sub in self._subs.values():
             self.destroy_subscription(sub)
         self._subs.clear()
@@ -104,7 +107,8 @@ class BagRecorderNode(ParamotionNode):
         return super().destroy_node()
 
 
-def main(args=None):
+def main(args: list[str] | None = None) -> None:
+    """Console script ``bag_recorder``."""
     run_node(BagRecorderNode, args)
 
 

@@ -15,7 +15,9 @@ module copies every record that can still be read into a new, complete MCAP file
   by ``mcap.writer.Writer``, plus the ``rosbag2`` metadata record that rosbag2 writes.
 """
 import io
+import os
 import struct
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -43,7 +45,7 @@ class Recovered:
     closed: bool = False              # the source already had its data end / footer
     start_ns: int = 0                 # first and last log time copied
     end_ns: int = 0
-    topics: dict = field(default_factory=dict)    # topic -> TopicInfo (type, count, QoS)
+    topics: dict[str, TopicInfo] = field(default_factory=dict)   # type, count, QoS per topic
 
 
 def _parse(record_bytes):
@@ -134,7 +136,8 @@ def _read_source(path, sink):
     return result
 
 
-def recover(src, dst, metadata=None):
+def recover(src: str | os.PathLike[str], dst: str | os.PathLike[str],
+            metadata: Callable[[Recovered], str] | None = None) -> Recovered:
     """Copy every readable record of MCAP file ``src`` into a new complete file ``dst``.
 
     ``metadata(result) -> str``, if given, returns the rosbag2 ``metadata.yaml`` text stored in
@@ -193,7 +196,7 @@ def recover(src, dst, metadata=None):
     return result
 
 
-def is_closed(path):
+def is_closed(path: str | os.PathLike[str]) -> bool:
     """True if MCAP file ``path`` ends with a footer and the closing magic."""
     size = Path(path).stat().st_size
     if size < 2 * len(MAGIC) + 29:

@@ -5,8 +5,11 @@ what a recorder needs on top of it: QoS profiles converted from rclpy publishers
 flushed to disk at least every ``flush_period`` seconds of wall time, so a recorder killed with
 SIGKILL leaves a file whose complete chunks still read back (see :mod:`paramotion.bag.reader`).
 """
+import os
 import time
+from collections.abc import Callable, Iterable
 from pathlib import Path
+from typing import Any
 
 from rosbags.interfaces import (
     Qos,
@@ -18,13 +21,14 @@ from rosbags.interfaces import (
 )
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys.store import Typestore
 
 from paramotion.errors import UserError
 
 _TYPESTORE = None
 
 
-def typestore():
+def typestore() -> Typestore:
     """The Jazzy type store (message definitions and hashes of the standard messages)."""
     global _TYPESTORE
     if _TYPESTORE is None:
@@ -40,8 +44,11 @@ def _duration(d):
     return QosTime(sec=ns // 1_000_000_000, nsec=ns % 1_000_000_000)
 
 
-def qos_from_rclpy(profile):
-    """Convert an rclpy ``QoSProfile`` into the rosbags ``Qos`` stored in offered_qos_profiles."""
+def qos_from_rclpy(profile: Any) -> Qos:
+    """Convert an rclpy ``QoSProfile`` into the rosbags ``Qos`` stored in offered_qos_profiles.
+
+    ``profile`` is read by attribute, so this module needs no rclpy import.
+    """
     return Qos(
         history=QosHistory(int(profile.history)),
         depth=int(profile.depth),
@@ -62,7 +69,8 @@ class BagWriter:
     overwrites a bag); its parent directory is created.
     """
 
-    def __init__(self, path, flush_period=1.0, clock=time.monotonic):
+    def __init__(self, path: str | os.PathLike[str], flush_period: float = 1.0,
+                 clock: Callable[[], float] = time.monotonic) -> None:
         path = Path(path)
         if path.exists():
             raise UserError(f'bag {path}: already exists, not overwriting')
@@ -77,7 +85,7 @@ class BagWriter:
         self._dirty = False
         self.message_count = 0
 
-    def add_topic(self, topic, msgtype, offered_qos=()):
+    def add_topic(self, topic: str, msgtype: str, offered_qos: Iterable[Any] = ()) -> None:
         """Register ``topic`` of ``msgtype`` ('pkg/msg/Type') with the publishers' QoS profiles."""
         if topic in self._connections:
             return
@@ -86,23 +94,24 @@ class BagWriter:
             topic, msgtype, typestore=typestore(), offered_qos_profiles=qos)
         self._dirty = True
 
-    def has_topic(self, topic):
+    def has_topic(self, topic: str) -> bool:
+        """True once ``topic`` is registered."""
         return topic in self._connections
 
-    def write(self, topic, timestamp_ns, data):
+    def write(self, topic: str, timestamp_ns: int, data: bytes) -> None:
         """Append one CDR-serialised message received at ``timestamp_ns`` (recorder clock)."""
         self._writer.write(self._connections[topic], int(timestamp_ns), bytes(data))
         self.message_count += 1
         self._dirty = True
         self.maybe_flush()
 
-    def maybe_flush(self):
+    def maybe_flush(self) -> None:
         """Close and flush the pending chunk if ``flush_period`` has passed since the last one."""
         now = self._clock()
         if self._dirty and now - self._last_flush >= self.flush_period:
             self.flush()
 
-    def flush(self):
+    def flush(self) -> None:
         """Write the pending chunk (with its message index) and push it to the OS."""
         storage = self._writer.storage
         if storage is not None and storage.chunk.bio.tell():
@@ -111,7 +120,7 @@ class BagWriter:
         self._last_flush = self._clock()
         self._dirty = False
 
-    def close(self):
+    def close(self) -> None:
         """Finish the MCAP summary and write metadata.yaml (ros_distro: jazzy, as rosbag2
         would; the rosbags library writes its own name there)."""
         if self._writer is not None:

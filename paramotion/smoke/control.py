@@ -4,7 +4,7 @@ sensor. Pure Python so it can be tested and replayed without ROS.
 import math
 
 
-def approach_velocity(reading, target, gain, max_speed):
+def approach_velocity(reading: float, target: float, gain: float, max_speed: float) -> float:
     """Forward speed (m/s) from one REP 117 range reading.
 
     A valid reading gives a saturated proportional law on the distance error; ``+inf`` (no

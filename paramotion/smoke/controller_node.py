@@ -6,6 +6,8 @@ A watchdog on sim time stops the cart when no reading arrived for ``timeout`` se
 so on ``/smoke/status`` (diagnostic_msgs/DiagnosticArray, latched); it resumes when readings
 return.
 """
+from typing import Any
+
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Twist
 from sensor_msgs.msg import Range
@@ -26,7 +28,7 @@ class SmokeControllerNode(ParamotionNode):
               max=60.0),
     )
 
-    def __init__(self, node_name='smoke_controller', **kwargs):
+    def __init__(self, node_name: str = 'smoke_controller', **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
         self.cmd_pub = self.create_publisher(Twist, '/smoke/cmd_vel', STATE_QOS)
         self.status_pub = self.create_publisher(DiagnosticArray, '/smoke/status', LATCHED_QOS)
@@ -71,7 +73,8 @@ class SmokeControllerNode(ParamotionNode):
             self.get_logger().warning(message)
 
 
-def main(args=None):
+def main(args: list[str] | None = None) -> None:
+    """Console script ``smoke_controller``."""
     run_node(SmokeControllerNode, args)
 
 

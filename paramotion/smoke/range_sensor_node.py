@@ -6,6 +6,7 @@ Reads the cart's true pose (it is a simulated sensor, so ground truth is its inp
 message at all with probability ``dropout_probability``.
 """
 import math
+from typing import Any
 
 import numpy as np
 from geometry_msgs.msg import PoseStamped
@@ -40,7 +41,7 @@ class SmokeRangeSensorNode(ParamotionNode):
         Param('frame_id', 'range_sensor', 'Frame of the sensor (x forward, REP 103).'),
     )
 
-    def __init__(self, node_name='smoke_range_sensor', **kwargs):
+    def __init__(self, node_name: str = 'smoke_range_sensor', **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
         self.rng = np.random.default_rng(self.params.seed)
         self.cart_x = None
@@ -48,7 +49,8 @@ class SmokeRangeSensorNode(ParamotionNode):
         self.pub = self.create_publisher(Range, '/smoke/range', SENSOR_QOS)
         self.create_timer(1.0 / self.params.rate, self._measure)
 
-    def check_params(self, values):
+    def check_params(self, values: dict[str, Any]) -> str | None:
+        """The measurable interval must not be empty."""
         if values['max_range'] <= values['min_range']:
             return (f"parameter 'max_range' = {values['max_range']} must exceed "
                     f"'min_range' = {values['min_range']}")
@@ -73,7 +75,8 @@ class SmokeRangeSensorNode(ParamotionNode):
                                    p.min_range, p.max_range, p.field_of_view))
 
 
-def main(args=None):
+def main(args: list[str] | None = None) -> None:
+    """Console script ``smoke_range_sensor``."""
     run_node(SmokeRangeSensorNode, args)
 
 

@@ -4,11 +4,13 @@ By default all nodes compose in one process and run lock-step (deterministic, as
 machine allows). With ``--processes`` every node runs in its own process, talking over DDS,
 with the simulator free-running at ``--rtf`` times real time.
 """
+import argparse
 import datetime
 import math
 import os
 import time
 from pathlib import Path
+from typing import Any
 
 from paramotion.bag.reader import bag_info, deserialize, read_messages
 from paramotion.scenario_io import add_output_args, output_dir, write_json
@@ -17,7 +19,8 @@ TOPICS = ['/clock', '/smoke/ground_truth', '/smoke/range', '/smoke/cmd_vel', '/s
 DEFAULTS = {'wall_x': 5.0, 'start_x': 0.0, 'cart_half_length': 0.2, 'target': 1.0}
 
 
-def run_lockstep(bag_dir, duration, sensor_params=None, seed=1):
+def run_lockstep(bag_dir: str | os.PathLike[str] | None, duration: float,
+                 sensor_params: dict[str, Any] | None = None, seed: int = 1) -> dict[str, Any]:
     """Run the smoke graph in one executor for ``duration`` sim seconds, recording ``bag_dir``.
 
     Returns a dict with the final true distance to the wall and run statistics.
@@ -45,7 +48,8 @@ def run_lockstep(bag_dir, duration, sensor_params=None, seed=1):
                 'controller_state': ctl.state, 'callbacks': graph.callbacks_run}
 
 
-def run_processes(bag_dir, duration, rtf, log_dir):
+def run_processes(bag_dir: str | os.PathLike[str], duration: float, rtf: float,
+                  log_dir: str | os.PathLike[str]) -> dict[str, Any]:
     """Run each smoke node in its own process over DDS; the simulator free-runs at ``rtf``."""
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
@@ -141,7 +145,7 @@ def _run(args):
     return 0 if ok else 1
 
 
-def register(subparsers):
+def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``paramotion smoke``."""
     stamp = datetime.datetime.now().strftime('%Y%m%d-%H%M%S')
     parser = subparsers.add_parser(

@@ -4,6 +4,8 @@ Subscribes ``/smoke/cmd_vel`` (geometry_msgs/Twist, linear.x used) and drives th
 with a velocity motor of limited force; publishes the cart's true pose on
 ``/smoke/ground_truth`` (geometry_msgs/PoseStamped, frame ``map``) every publish period.
 """
+from typing import Any
+
 from geometry_msgs.msg import PoseStamped, Twist
 
 from paramotion.messages import pose_stamped
@@ -25,7 +27,7 @@ class SmokeSimNode(SimulationNode):
         Param('max_force', 50.0, 'Force limit of the rail motor (N).', min=0.0, max=1e4),
     )
 
-    def __init__(self, node_name='smoke_sim', **kwargs):
+    def __init__(self, node_name: str = 'smoke_sim', **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
         p, b = self.params, self.bullet
         b.createMultiBody(0.0, b.createCollisionShape(b.GEOM_PLANE))
@@ -50,21 +52,24 @@ class SmokeSimNode(SimulationNode):
         self.command = float(msg.linear.x)
 
     @property
-    def cart_x(self):
+    def cart_x(self) -> float:
         """True cart centre x (m)."""
         return self.bullet.getJointState(self.cart, 0)[0]
 
-    def step_physics(self, dt):
+    def step_physics(self, dt: float) -> None:
+        """Drive the rail motor at the commanded speed for one physics step."""
         self.bullet.setJointMotorControl2(self.cart, 0, self.bullet.VELOCITY_CONTROL,
                                           targetVelocity=self.command,
                                           force=self.params.max_force)
         self.bullet.stepSimulation()
 
-    def publish_state(self):
+    def publish_state(self) -> None:
+        """Publish the cart's true pose."""
         self.truth_pub.publish(pose_stamped(self.stamp(), 'map', (self.cart_x, 0.0, 0.2)))
 
 
-def main(args=None):
+def main(args: list[str] | None = None) -> None:
+    """Console script ``smoke_sim``."""
     run_node(SmokeSimNode, args)
 
 
