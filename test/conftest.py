@@ -13,10 +13,23 @@ _REPO = Path(__file__).resolve().parents[1]
 if str(_REPO) not in sys.path:
     sys.path.insert(0, str(_REPO))
 
-# Domain ids 1..100 leave room for Fast DDS port arithmetic; pick one per run at random
-# (seeded by pid and time so parallel runs differ).
-_rng = random.Random(os.getpid() ^ int.from_bytes(os.urandom(4), 'little'))
-os.environ['ROS_DOMAIN_ID'] = str(_rng.randint(1, 100))
+
+
+def _domain_id():
+    """Domain ids 1..100 leave room for Fast DDS port arithmetic: one per run, at random
+    (seeded by pid and urandom so parallel runs differ). Under pytest-xdist (``-n N``) the
+    workers of one run share a random base (``PYTEST_XDIST_TESTRUNUID``) and add their index,
+    so no two workers of a run share a domain."""
+    run_uid = os.environ.get('PYTEST_XDIST_TESTRUNUID')
+    worker = os.environ.get('PYTEST_XDIST_WORKER', '')
+    if run_uid and worker.startswith('gw') and worker[2:].isdigit():
+        base = random.Random(run_uid).randrange(100)
+        return (base + int(worker[2:])) % 100 + 1
+    rng = random.Random(os.getpid() ^ int.from_bytes(os.urandom(4), 'little'))
+    return rng.randint(1, 100)
+
+
+os.environ['ROS_DOMAIN_ID'] = str(_domain_id())
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ.pop('ROS_LOCALHOST_ONLY', None)
 os.environ.setdefault('MPLBACKEND', 'Agg')

@@ -39,6 +39,7 @@ def test_existing_output_is_refused(tmp_path, capsys):
     assert 'already exists' in capsys.readouterr().err
 
 
+@pytest.mark.slow            # starts a node process
 def test_node_executable_refuses_bad_parameter_with_one_line():
     proc = subprocess.run(
         [sys.executable, '-m', 'paramotion.smoke.range_sensor_node', '--ros-args',

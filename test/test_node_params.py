@@ -140,6 +140,7 @@ print('run_node returned')  # never: after a clean stop run_node ends the proces
 '''
 
 
+@pytest.mark.slow            # a node process per case
 @pytest.mark.parametrize('case', ['after_shutdown', 'context_valid'])
 def test_run_node_stops_cleanly_when_shutdown_races_a_take(case):
     """A node process stopped by Ctrl-C while its executor was taking a message exits 0: the
