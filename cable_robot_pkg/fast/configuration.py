@@ -49,7 +49,7 @@ ISOLATION_MODES = ('lu', 'cheng', 'predictive')
 #: Base predictors of the ``predictive`` mode (``isolation.predictor``).
 BASE_PREDICTORS = ('kalman', 'wiener')
 #: Constructs that ``--without NAME`` (node parameter and launch argument ``without``) removes.
-ABLATIONS = ('tracker_feedback', 'isolation', 'prediction')
+ABLATIONS = ('tracker_feedback', 'isolation', 'prediction', 'reaction')
 
 
 def parse_without(value: str | Iterable[object] | None,

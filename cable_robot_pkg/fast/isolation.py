@@ -522,6 +522,71 @@ class TargetHistory:
         return (p1 - p0) / dt, w
 
 
+def _skew(v):
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def _box_inertia(m, size):
+    x, y, z = (float(s) for s in size)
+    return m / 12.0 * np.diag([y * y + z * z, x * x + z * z, x * x + y * y])
+
+
+def _disc_inertia(m, r, h):
+    return m * np.diag([(3 * r * r + h * h) / 12.0, (3 * r * r + h * h) / 12.0, r * r / 2.0])
+
+
+def reaction_model(cfg: FastConfig) -> tuple[np.ndarray, np.ndarray]:
+    """``(K, J)``, 6 x 6 each, in the upper platform (base) frame at the nominal pose.
+
+    The leg forces are internal to base + payload: they change neither the pair's linear
+    momentum nor its angular momentum. Linearised about the nominal pose, with ``x_b`` the
+    base's small displacement (position, rotation vector) and ``e`` the payload's displacement
+    relative to the base, both momenta integrate to ``Y = G x_b + H e``, which only the
+    external forces (wind, cables) change. ``K = G^-1 H``: ``x_b + K e`` is the *reaction-free*
+    base, the pose the base would have had if the legs had not moved. ``J`` maps a base
+    displacement to the payload's when rigidly attached. Mass properties from the config:
+    the trolley as a box, ring and upper platform at the hinge and platform centres, legs
+    halfway between their anchors, the payload a disc at the nominal relative pose (the
+    hinge rotation of the trolley's parts is neglected: at most the track's zenith)."""
+    raw = cfg.raw
+    g = raw['gough_stewart']
+    chain = cfg.chain
+    hinge = np.array([0.0, 0.0, chain.upper_offset])          # base frame: upper centre = 0
+    p_nom, R_nom = chain.nominal_relative_pose()
+    trolley_c = hinge - np.asarray(chain.hinge_offset, float)
+    legs_c = 0.5 * (cfg.geometry.base_anchors + p_nom + cfg.geometry.platform_anchors @ R_nom.T)
+    parts = [(raw['trolley']['mass'], trolley_c,
+              _box_inertia(raw['trolley']['mass'], raw['trolley']['size'])),
+             (raw['orienting']['ring_mass'], hinge, np.zeros((3, 3))),
+             (g['upper_mass'], np.zeros(3),
+              _disc_inertia(g['upper_mass'], g['base_radius'], 0.06))]
+    parts += [(g['leg_mass'], c, np.zeros((3, 3))) for c in legs_c]
+    m_b = sum(m for m, _, _ in parts)
+    c_b = sum(m * c for m, c, _ in parts) / m_b
+    I_b = sum(inertia + m * (np.dot(c - c_b, c - c_b) * np.eye(3) - np.outer(c - c_b, c - c_b))
+              for m, c, inertia in parts)
+    m_p = float(g['feed_mass'])
+    I_p = _disc_inertia(m_p, g['platform_radius'], 0.06)
+    centre = (m_b * c_b + m_p * p_nom) / (m_b + m_p)
+
+    def momenta(x_b, e):
+        """Integrated linear and angular momentum (about the fixed ``centre``)."""
+        d_b, th_b = x_b[:3], x_b[3:]
+        dc_b = d_b + np.cross(th_b, c_b)
+        dx_p = d_b + np.cross(th_b, p_nom) + e[:3]
+        lin = m_b * dc_b + m_p * dx_p
+        ang = I_b @ th_b + I_p @ (th_b + e[3:]) + m_b * np.cross(c_b - centre, dc_b) \
+            + m_p * np.cross(p_nom - centre, dx_p)
+        return np.concatenate([lin, ang])
+
+    eye = np.eye(6)
+    G = np.column_stack([momenta(eye[k], np.zeros(6)) for k in range(6)])
+    H = np.column_stack([momenta(np.zeros(6), eye[k]) for k in range(6)])
+    J = np.eye(6)
+    J[:3, 3:] = -_skew(p_nom)
+    return np.linalg.solve(G, H), J
+
+
 def pose_error(target_p: ArrayLike, target_R: ArrayLike, p: ArrayLike,
                R: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Position error (3,) and rotation-vector error (3,) target minus actual, map frame."""
@@ -586,7 +651,8 @@ class IsolationController:
                  slow_time: float = 1.0, chain: FeedSupportChain | None = None,
                  fuse: bool = True, without: Iterable[str] = frozenset(),
                  predictor: str = 'wiener', wiener_taps: int = 16,
-                 wiener_spacing: float = 0.01, wiener_window: float = 20.0):
+                 wiener_spacing: float = 0.01, wiener_window: float = 20.0,
+                 reaction: tuple[ArrayLike, ArrayLike] | None = None):
         if mode not in MODES:
             raise ValueError(f'unknown isolation mode {mode!r}')
         if predictor not in PREDICTORS:
@@ -596,6 +662,14 @@ class IsolationController:
         self.without = frozenset(without)
         self.open_loop = 'tracker_feedback' in self.without
         self.predict_base = 'prediction' not in self.without
+        # Reaction-free base (:func:`reaction_model`): the predictors see x_b + K e, e the
+        # payload's displacement relative to the base from the leg encoders, and the legs
+        # are commanded e = (I - J K)^-1 e0 for the payload error e0 relative to it.
+        self.reaction = None
+        if reaction is not None and mode != 'lu' and 'reaction' not in self.without:
+            K, J = (np.asarray(a, float) for a in reaction)
+            self.reaction = (K, np.linalg.inv(np.eye(6) - J @ K))
+        self._fk_cache = (None, None)
         if self.open_loop and chain is None:
             raise ValueError('without tracker_feedback needs the chain (trajectory -> base)')
         fuse = fuse and mode == 'predictive'
@@ -679,7 +753,7 @@ class IsolationController:
                    vibration_band=iso['vibration_band'], chain=cfg.chain, fuse=iso['fuse'],
                    without=frozenset(without), predictor=iso['predictor'],
                    wiener_taps=iso['wiener_taps'], wiener_spacing=iso['wiener_spacing'],
-                   wiener_window=iso['wiener_window'])
+                   wiener_window=iso['wiener_window'], reaction=reaction_model(cfg))
 
     # ------------------------------------------------------------------ inputs
     def set_target(self, t: float, position: ArrayLike, rotation: ArrayLike) -> None:
@@ -687,7 +761,9 @@ class IsolationController:
         self.targets.add(t, position, rotation)
 
     def add_base(self, now: float, stamp: float, position: ArrayLike, rotation: ArrayLike) -> bool:
-        """Tracked upper platform pose captured at ``stamp``, received at ``now``."""
+        """Tracked upper platform pose captured at ``stamp``, received at ``now``; the
+        predictors see its reaction-free position (:meth:`_reaction_free`)."""
+        position, rotation = self._reaction_free(stamp, position, rotation)
         if self.base.add(stamp, position, rotation):
             self.last_base_arrival = now
             self.last_base_R = np.asarray(rotation, float)
@@ -752,21 +828,53 @@ class IsolationController:
         p, R = self.chain.upper_pose(position, rotation, hinge[0], hinge[1])
         return self.add_base(now, stamp, p, R)
 
+    def _legs_pose(self, stamp):
+        """Feed pose relative to the upper platform at ``stamp`` from the leg encoders
+        (forward kinematics of the shared Gough-Stewart module; one solve per stamp), or
+        None."""
+        if self._fk_cache[0] == stamp:
+            return self._fk_cache[1]
+        lengths = self.legs.at(stamp)
+        fk = None
+        if lengths is not None:
+            g = self.geometry
+            lengths = np.clip(lengths, g.leg_min + 1e-9, g.leg_max - 1e-9)
+            try:
+                fk = forward_kinematics(g, lengths, *self.fk_guess)
+            except (SingularPoseError, UnreachablePoseError, ValueError):
+                fk = None
+            if fk is not None and fk.converged:
+                self.fk_guess = (fk.position, fk.rotation)
+            else:
+                fk = None
+        self._fk_cache = (stamp, fk)
+        return fk
+
+    def _reaction_free(self, stamp, position, rotation):
+        """Base pose minus the part of its motion the legs' own reaction caused (Cheng et
+        al.'s coupling): ``x_b + K e`` (:func:`reaction_model`), ``e`` the payload's pose
+        relative to the base at ``stamp`` from the leg encoders. Leg forces are internal to
+        base + payload, so at the vibration frequencies (above the cable suspension's) this
+        pose moves only with wind and cables, and predicting it does not feed the legs'
+        motion back into the legs (a positive feedback of gain ~ |K| |H| otherwise)."""
+        position = np.asarray(position, float)
+        rotation = np.asarray(rotation, float)
+        if self.reaction is None:
+            return position, rotation
+        fk = self._legs_pose(stamp)
+        if fk is None:
+            return position, rotation
+        e = np.concatenate([fk.position - self.nominal_p,
+                            rotvec_from_matrix(fk.rotation @ self.nominal_R.T)])
+        k = self.reaction[0] @ e                      # base frame
+        return position + rotation @ k[:3], rotation @ matrix_from_rotvec(k[3:])
+
     def _base_from_feed(self, stamp, position, rotation):
         """Upper platform pose from the tracked feed and the leg lengths at ``stamp``
         (forward kinematics of the shared Gough-Stewart module), or None."""
-        lengths = self.legs.at(stamp)
-        if lengths is None:
+        fk = self._legs_pose(stamp)
+        if fk is None:
             return None
-        g = self.geometry
-        lengths = np.clip(lengths, g.leg_min + 1e-9, g.leg_max - 1e-9)
-        try:
-            fk = forward_kinematics(g, lengths, *self.fk_guess)
-        except (SingularPoseError, UnreachablePoseError, ValueError):
-            return None
-        if not fk.converged:
-            return None
-        self.fk_guess = (fk.position, fk.rotation)
         R_b = np.asarray(rotation) @ fk.rotation.T
         return np.asarray(position) - R_b @ fk.position, R_b
 
@@ -935,7 +1043,15 @@ class IsolationController:
         p_b, R_b = self._base_command(t)
         p_d = target_p + self.trim[:3]
         R_d = matrix_from_rotvec(self.trim[3:]) @ target_R
-        return R_b.T @ (p_d - p_b), R_b.T @ R_d
+        rel_p, rel_R = R_b.T @ (p_d - p_b), R_b.T @ R_d
+        if self.reaction is not None:
+            # (p_b, R_b) is the reaction-free base: moving the payload by e relative to the
+            # base moves the base by -K e, so the legs move it by (I - J K)^-1 e0.
+            e0 = np.concatenate([rel_p - self.nominal_p,
+                                 rotvec_from_matrix(rel_R @ self.nominal_R.T)])
+            e = self.reaction[1] @ e0
+            rel_p, rel_R = self.nominal_p + e[:3], matrix_from_rotvec(e[3:]) @ self.nominal_R
+        return rel_p, rel_R
 
     def _clip(self, lengths):
         clipped = bool(np.any(lengths < self.lo) or np.any(lengths > self.hi))
