@@ -17,26 +17,37 @@ extrapolated with its velocity across the measured latency; the desired feed pos
 the predicted base, through the shared inverse kinematics, gives leg lengths and rates, and
 the leg drives close the PD around them (:mod:`cable_robot_pkg.fast.plant`). No feed feedback.
 
-``predictive`` -- the project's own: the same predictor with (1) two more views of the base
-fused at the same capture stamps (trolley tracker + hinge encoders; feed tracker + leg
-encoders through the shared forward kinematics), (2) second-order extrapolation with the
-bandwidth and compensation gain re-scheduled to the measured latency
-(:func:`schedule_predictor`: ``g * max|H| <= peak_gain_max`` and no lag in the trolley's
-``vibration_band``, weighted by the base motion spectrum measured from the tracker), and
-(3) a slow integral trim on the tracked feed error (gain ``trim_gain``, delay margin
+Both ``cheng`` and ``predictive`` predict the *reaction-free* base (:func:`reaction_model`):
+the platforms are dynamically coupled (Cheng et al.), so the legs' reaction forces move the
+base, which the tracker sees again; a predictor of the measured base sits inside that loop and,
+once the payload's inertia is comparable to the base's, drives it unstable. The leg forces are
+internal to base + payload and change neither momentum, so the base pose minus the reaction
+share ``K e`` of the payload's relative displacement ``e`` (leg encoders) moves with the
+external forces only; the legs are then commanded ``(I - J K)^-1`` times the payload error
+relative to that base. Mass properties come from the config.
+
+``predictive`` -- the project's own: (1) three views of the base fused at the same capture
+stamps (upper platform tracker; trolley tracker + hinge encoders; feed tracker + leg encoders
+through the shared forward kinematics); (2) an adaptive least-squares multi-step predictor
+(:class:`WienerPredictor`, ``predictor: wiener``) fitted every second to the last 20 s of the
+fused base motion and evaluated at the measured latency, its peak gain bounded by
+``peak_gain_max``; until it has 4 s of history (and with ``predictor: kalman``) the Kalman
+predictor with second-order extrapolation and a bandwidth and compensation gain re-scheduled to
+the measured latency (:func:`schedule_predictor`: ``g * max|H| <= peak_gain_max`` and no lag in
+the trolley's ``vibration_band``, weighted by the measured base motion spectrum); (3) a slow
+integral trim on the tracked feed error (gain ``trim_gain``, delay margin
 ``pi / (2 trim_gain)`` s) that removes steady offsets.
 
-Why the schedule: the platforms are dynamically coupled (Cheng et al.), so the leg reaction
-forces move the base, which the tracker sees again, and the predictor sits inside that loop.
-Extrapolating a filtered [p, v, a] estimate across the latency is a phase lead whose gain grows
-with frequency and latency (:func:`predictor_response`); an unbounded gain makes the trolley and
-upper platform oscillate against the feed at 14-19 Hz; a lagging compensation is negative
-damping of the trolley's 0.3-2 Hz modes.
+Why the peak-gain bound: extrapolating across the latency is a phase lead whose gain grows with
+frequency and latency (:func:`predictor_response`); through the coupled platforms an unbounded
+gain makes the trolley and upper platform oscillate against the feed at 14-19 Hz; a lagging
+compensation is negative damping of the trolley's 0.3-2 Hz modes.
 
 Ablations (``without``): ``prediction`` uses the latest base estimate at its capture time
-(no extrapolation; ``lu`` has none to remove); ``tracker_feedback`` ignores every tracker
-frame and computes the legs open loop from the trajectory (the base assumed at its commanded
-pose); ``isolation`` holds the legs at their nominal lengths.
+(no extrapolation; ``lu`` has none to remove); ``reaction`` predicts the measured base instead
+of the reaction-free one; ``tracker_feedback`` ignores every tracker frame and computes the legs
+open loop from the trajectory (the base assumed at its commanded pose); ``isolation`` holds the
+legs at their nominal lengths.
 
 Faults: a base measurement that is not finite is dropped; when no valid base measurement has
 arrived for ``dropout_timeout`` the controller *holds* the last leg command (zero rate) and
