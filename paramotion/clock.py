@@ -12,6 +12,7 @@ A :class:`ClockSourceNode` advances simulated time in fixed periods. Two ways to
   nodes in other processes see ``/clock`` advance smoothly over DDS.
 """
 import time
+from collections import deque
 
 from builtin_interfaces.msg import Time
 from rclpy.clock import Clock, ClockType
@@ -67,8 +68,8 @@ class ClockSourceNode(ParamotionNode):
         self.clock_hooks = []
         self._waiting = (self.params.wait_for_clock_subscribers > 0
                          or any(self.params.wait_for_matched))
-        #: Per answering controller: [stamp of its last answer, its shortest interval
-        #: between answers] in sim ns (:meth:`answered`).
+        #: Per answering controller: [stamp of its last answer, its period, its last
+        #: intervals between answers] in sim ns (:meth:`answered`).
         self.answers = {}
         self.sync_waits = 0           # timer ticks that waited for an answer
         self._sync_lag_ns = int(round(self.params.sync_max_lag * NS))
@@ -123,22 +124,23 @@ class ClockSourceNode(ParamotionNode):
         """Subclass hook: controller ``source`` answered the state of sim time ``stamp_ns``
         (the stamp of the command it computed from that state).
 
-        A controller's next answer is due one interval (the shortest seen between its answers:
-        its period) after its last; with ``sync_max_lag`` >= 0 a free-running source waits
-        while an answer has been due for longer than the lag.
+        A controller's next answer is due one interval (its period: the median of its last
+        nine intervals between answers, robust to a tick that fired late) after its last;
+        with ``sync_max_lag`` >= 0 a free-running source waits while an answer has been due
+        for longer than the lag.
         """
         entry = self.answers.get(source)
         if entry is None:
-            self.answers[source] = [stamp_ns, None]
+            self.answers[source] = [stamp_ns, None, deque(maxlen=9)]
         elif stamp_ns > entry[0]:
-            interval = stamp_ns - entry[0]
-            entry[1] = interval if entry[1] is None else min(entry[1], interval)
+            entry[2].append(stamp_ns - entry[0])
+            entry[1] = sorted(entry[2])[len(entry[2]) // 2]
             entry[0] = stamp_ns
 
     def _late_answer(self):
         """The first controller whose answer is overdue by more than the lag, else None."""
         limit = self.sim_time_ns - self._sync_lag_ns
-        for source, (last, interval) in self.answers.items():
+        for source, (last, interval, _) in self.answers.items():
             if interval is not None and last + interval <= limit:
                 return source
         return None
@@ -158,6 +160,9 @@ class ClockSourceNode(ParamotionNode):
             self._sync_since = now
         if now - self._sync_since < self.params.sync_timeout:
             self.sync_waits += 1
+            # /clock is best effort: a controller that lost the sample of this time (a reader
+            # matched late, a full queue) would never tick and answer; say the time again.
+            self._clock_pub.publish(ClockMsg(clock=self.stamp()))
             return True
         if not self._sync_warned:
             self._sync_warned = True

@@ -70,7 +70,7 @@ def make_executor(kind, context):
 #: Environment variable choosing the executor of a node run as its own process
 #: (:func:`spin_node`): ``events`` or ``single_threaded``.
 NODE_EXECUTOR_ENV = 'PARAMOTION_EXECUTOR'
-NODE_EXECUTORS = ('events', 'single_threaded')
+NODE_EXECUTORS = ('events', 'single_threaded', 'waitset')
 DEFAULT_NODE_EXECUTOR = 'single_threaded'
 
 
@@ -83,29 +83,36 @@ def node_executor_kind():
     return kind
 
 
-def spin_node(node, kind=None):
+def spin_node(node, kind=None, stop=None):
     """Spin ``node`` (its own process) until its context shuts down.
 
     A component container (:class:`paramotion.container.ComponentContainer`) is spun together
     with its ``components`` on the same executor. ``single_threaded`` (default) is
     ``rclpy.spin(node)`` (a ``SingleThreadedExecutor`` over all the nodes for a container).
     ``events`` runs them on rclpy's ``EventsExecutor`` (less CPU per message; a callback's
-    exception is also logged by it at FATAL level before ``run_node`` sees it, shutdown races
-    included); its ``spin()`` waits in C++ without returning to Python, so a signal's Python
-    handler would never run: it is spun in ``spin_once`` slices of 0.1 s instead, which run
-    every event as it arrives and let SIGINT and SIGTERM stop the node.
+    exception is also logged by it at FATAL level before ``run_node`` sees it); its
+    ``spin()`` waits in C++ without returning to Python, so a signal's Python handler would
+    never run: it is spun in ``spin_once`` slices of 0.1 s instead, which run every event as
+    it arrives and end once ``stop()`` is true (a signal arrived: see
+    :func:`paramotion.node.run_node`) or the context is shut down.
     """
     kind = kind or node_executor_kind()
     nodes = [node, *getattr(node, 'components', ())]
     if kind == 'single_threaded' and len(nodes) == 1:
         rclpy.spin(node)
         return
-    executor = make_executor(kind, node.context)
+    executor = make_executor('single_threaded' if kind == 'waitset' else kind, node.context)
     for each in nodes:
         executor.add_node(each)
-    timeout = 0.1 if kind == 'events' else None
-    while node.context.ok():
-        executor.spin_once(timeout_sec=timeout)
+    if kind == 'waitset':
+        LockstepDrain(executor, node.context).spin(stop)
+        return
+    if kind == 'single_threaded':
+        while node.context.ok():
+            executor.spin_once()
+        return
+    while node.context.ok() and not (stop is not None and stop()):
+        executor.spin_once(timeout_sec=0.1)
 
 
 def private_domain_id():
@@ -421,7 +428,9 @@ class LockstepDrain:
             pending = any(not t.done() for t, _, _ in ex._tasks)
         return pending or any(True for node in nodes for _ in node.guards)
 
-    def _round(self, qos_events=True):
+    def _round(self, qos_events=True, timeout_ns=0):
+        """One wait (``timeout_ns``: 0 polls, > 0 blocks until something is ready or the time
+        is up) and the callbacks it found ready; returns how many ran."""
         ex = self.executor
         nodes = ex.get_nodes()
         if ex._is_shutdown or not self.context.ok():
@@ -433,7 +442,7 @@ class LockstepDrain:
                      [w for w in node.waitables if qos_events or not isinstance(w, EventHandler)])
                     for node in nodes]
         ws = self._fill_wait_set(per_node)
-        ws.wait(0)
+        ws.wait(timeout_ns)
         subs_ready = set(ws.get_ready_entities('subscription'))
         timers_ready = set(ws.get_ready_entities('timer'))
         clients_ready = set(ws.get_ready_entities('client'))
@@ -465,6 +474,16 @@ class LockstepDrain:
                 if srv.handle.pointer in services_ready:
                     ran += self._run_handler(srv, node, ex._take_service)
         return ran
+
+    def spin(self, stop=None, slice_s=0.1, qos_every=10):
+        """Free-running: wait for ready callbacks (at most ``slice_s`` s per wait) and run them
+        in the executor's order until ``stop()`` is true or the context shuts down; the QoS
+        event handlers are polled every ``qos_every`` waits."""
+        timeout_ns = int(slice_s * 1e9)
+        waits = 0
+        while self.context.ok() and not (stop is not None and stop()):
+            self._round(qos_events=waits % qos_every == 0, timeout_ns=timeout_ns)
+            waits += 1
 
     def _fill_wait_set(self, per_node):
         key = tuple(id(e) for entry in per_node for group in entry[1:] for e in group)

@@ -30,6 +30,7 @@ from rclpy._rclpy_pybind11 import RCLError
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.signals import SignalHandlerOptions
 
 from paramotion.errors import ParameterError, UserError
 from paramotion.shutdown import ShutdownSignals, ShutdownWaker, exit_now
@@ -241,18 +242,23 @@ def run_node(node_cls, args=None):
 def _run_node(node_cls, args, signals):
     node = watchdog = waker = None
     try:
-        rclpy.init(args=args, signal_handler_options=signals.rclpy_options())
+        from paramotion.graph import node_executor_kind, spin_node  # $PARAMOTION_EXECUTOR
+        kind = node_executor_kind()
+        # The events and waitset executors are spun in 0.1 s slices that stop once a signal
+        # has arrived: rclpy's handler stays out (it would shut the context down under a
+        # running callback, which the events executor logs as a FATAL error), and they need
+        # no guard condition of a waker. rclpy's own executor is stopped by rclpy's handler
+        # between callbacks.
+        events = kind != 'single_threaded'
+        rclpy.init(args=args, signal_handler_options=(
+            SignalHandlerOptions.NO if events else signals.rclpy_options()))
         node = node_cls()
         # A node on sim time in its own process warns once if its simulator stops.
         from paramotion.clock_watchdog import attach
         watchdog = attach(node)
-        from paramotion.graph import node_executor_kind, spin_node  # $PARAMOTION_EXECUTOR
-        kind = node_executor_kind()
-        # The events executor has no guard conditions; it is spun in 0.1 s slices that check
-        # the context, so it needs no waker.
-        waker = ShutdownWaker(node) if kind == 'single_threaded' else None
+        waker = None if events else ShutdownWaker(node)
         signals.spinning()
-        spin_node(node, kind)
+        spin_node(node, kind, stop=lambda: signals.requested)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (RCLError, RuntimeError):

@@ -96,8 +96,9 @@ needs_ros2_launch = pytest.mark.skipif(not ROS2_LAUNCH.is_file(), reason=(
                                       'paramotion'])
 def test_composed_graph_holds_the_feed_and_stops_cleanly(request, tmp_path, launcher):
     """composed:=true: two processes (simulator, container); the feed within spec over DDS;
-    a terminal Ctrl-C stops both cleanly."""
-    args = ['composed:=true', 'real_time_factor:=0.1']
+    a terminal Ctrl-C stops both cleanly. At 0.05x real time, as the one-process-per-node
+    graph is checked (docs/performance.md has the speeds measured at 1.0x)."""
+    args = ['composed:=true', 'real_time_factor:=0.05']
     cmd = None
     if launcher == 'ros2':
         ws = request.getfixturevalue('workspace')

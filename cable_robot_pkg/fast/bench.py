@@ -183,7 +183,8 @@ def bench_processes(wall_s: float = 40.0, real_time_factor: float = 1.0,
 
     with tempfile.TemporaryDirectory(prefix='fast_bench_') as tmp:
         bag = Path(tmp) / 'bag'
-        args = {'record': True, 'bag': str(bag), 'real_time_factor': float(real_time_factor)}
+        args = {'record': True, 'bag': str(bag), 'real_time_factor': float(real_time_factor),
+                'executor': executor}
         args.update(launch_args or {})
         desc = load_launch('fast', args)
         domain = random.SystemRandom().randint(102, 200)
@@ -205,7 +206,8 @@ def bench_processes(wall_s: float = 40.0, real_time_factor: float = 1.0,
                 log = open(Path(tmp) / f'{action.label}.log', 'wb')
                 logs.append(log)
                 procs[action.label] = subprocess.Popen(
-                    cmd, env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+                    cmd, env={**env, **action.env}, stdout=log, stderr=subprocess.STDOUT,
+                    start_new_session=True)
             time.sleep(wall_s)
         finally:
             exits = _stop(procs)
@@ -249,12 +251,16 @@ LOCKSTEP = ('fast',)
 #: The cross-process configurations the performance page measures side by side:
 #: (label, node executor, launch arguments).
 PROCESS_CONFIGS = [
-    ('one process per node, rclpy.spin', 'single_threaded', {'composed': False}),
-    ('one process per node, events executor', 'events', {'composed': False}),
-    ('control nodes composed, events executor', 'events', {'composed': True}),
-    ('one process per node, events, simulator waits (sync_max_lag 0)', 'events',
+    ('one process per node, rclpy.spin, free-running', 'single_threaded',
+     {'composed': False, 'sync_max_lag': -1.0}),
+    ('one process per node, events executor, free-running', 'events',
+     {'composed': False, 'sync_max_lag': -1.0}),
+    ('control nodes composed, events executor, free-running', 'events',
+     {'composed': True, 'sync_max_lag': -1.0}),
+    ('one process per node, rclpy.spin, simulator waits', 'single_threaded',
      {'composed': False, 'sync_max_lag': 0.0}),
-    ('control nodes composed, events, simulator waits (sync_max_lag 0)', 'events',
+    ('one process per node, events executor, simulator waits (launch defaults)', 'events', {}),
+    ('control nodes composed, events executor, simulator waits', 'events',
      {'composed': True, 'sync_max_lag': 0.0}),
 ]
 
@@ -266,7 +272,17 @@ def report_lines(quick: bool, log: Callable[[str], object] = print, wall_s: floa
     with the sim seconds per wall second reached, the feed errors, each process's CPU share,
     the CPU seconds all processes used per sim second and the load average (not part of
     ``--quick``)."""
-    lines = ['## FAST across processes (`launch/fast.launch.xml`)', '']
+    log('bench fast CPU breakdown ...')
+    parts = cpu_breakdown(1.0 if quick else 4.0)
+    total = parts.pop('total')
+    lines = ['## Where the one-process FAST graph spends its CPU time', '',
+             f'`cable_robot_pkg.fast.bench.cpu_breakdown`: a lock-step run of '
+             f'{1.0 if quick else 4.0:g} sim s, callbacks timed with `time.process_time`; '
+             f'{total:.3f} CPU s per sim s in all (at most {1 / total:.2f} sim s per CPU s).',
+             '', '| part | CPU s per sim s | share |', '|---|---|---|']
+    lines += [f'| {key} | {value:.3f} | {100 * value / total:.0f} % |'
+              for key, value in parts.items()]
+    lines += ['', '## FAST across processes (`launch/fast.launch.xml`)', '']
     if quick:
         return lines + ['Not measured with `--quick` (each run takes a minute of wall time).']
     lines += [f'real_time_factor {real_time_factor}, {wall_s:.0f} s of wall time per run with '
