@@ -1,7 +1,8 @@
 """``paramotion demo``: the coverage system of Acar, Choset and Lee, run the way a ROS 2 user
 runs it: ``launch/coverage.launch.xml`` started as one process per node (simulator, sonar
 ring, planner, monitor and the bag recorder) on the world shipped in the package, the simulator
-free-running at ``--rtf`` times real time.
+free-running at ``--rtf`` times real time. The planner is the launch file's default, the
+paper's Algorithm 1 (``--planner grid``: the grid planner, ours).
 
 It watches the graph over DDS (``/clock``, ``/coverage/status``,
 ``/coverage/covered_fraction``) until the planner reports the end of coverage (``done``, or
@@ -234,7 +235,8 @@ def register(subparsers):
         'demo', help='the coverage system, one process per node, recorded',
         description='Launch launch/coverage.launch.xml (simulator, sonar, planner, monitor, '
         'recorder: one process each) on the packaged world, stop when the planner is done, '
-        'and write bag/, result.json and coverage.png.')
+        "and write bag/, result.json and coverage.png. The planner is the paper's Algorithm 1 "
+        '(--planner grid: the frontier-driven grid planner, ours).')
     add_output_args(parser, default_out=os.path.join('bags', 'runs', f'demo-{stamp}'))
     parser.add_argument('--rtf', type=float, default=2.0,
                         help='real-time factor of the free-running simulator (default 2; '

@@ -30,9 +30,11 @@ import numpy as np
 from coverage_pkg.algorithm1 import PaperConfig
 from coverage_pkg.kinematic import run_kinematic
 from coverage_pkg.planner import PlannerConfig, graph_dict
-from coverage_pkg.world import load_world
+from coverage_pkg.world import World, load_world, world_from_dict
 
 WORLDS = Path(__file__).resolve().parent / 'worlds'
+#: sides (m) of the pillar halls of the scaling rows (full report only): area x4
+HALL_SIZES = (10.0, 20.0)
 #: packaged worlds compared in every report, before the generated ones
 HAND_MADE = ('demo_rooms', 'pillar_room')
 
@@ -62,6 +64,16 @@ def _run(world, config, max_time=3000.0):
         total = sum(lengths.values())
         row['primitive_share'] = 1.0 - lengths.get('transit', 0.0) / total if total else None
     return row
+
+
+def _rows_table(rows, first):
+    """Markdown table of measured rows, the columns ``first`` leading."""
+    return _table(list(first) + ['planner', 'end', 'covered CVS', 'path / bound', 'primitives',
+                                 'sim s', 'wall s', 'update median ms', 'update p99 ms'],
+                  [tuple(r[k] for k in first)
+                   + (r['planner'], r['state'], _pct(r['covered']), _num(r['ratio']),
+                      _pct(r.get('primitive_share')), _num(r['sim'], 0), _num(r['wall'], 1),
+                      _num(r['median_ms']), _num(r['p99_ms'])) for r in rows])
 
 
 def _table(header, rows):
@@ -104,11 +116,37 @@ def ablations() -> list[dict[str, object]]:
     return rows
 
 
+def pillar_hall(size: float, spacing: float = 5.0, pillar: float = 1.0) -> World:
+    """A square hall of side ``size`` with square pillars of side ``pillar`` on a ``spacing``
+    grid: the same structure at any size, to see whether a planner's time grows with area."""
+    k = int(size // spacing)
+    h = pillar / 2
+    pillars = [[[x - h, y - h], [x + h, y - h], [x + h, y + h], [x - h, y + h]]
+               for x in (i * spacing for i in range(1, k)) for y in (j * spacing
+                                                                    for j in range(1, k))]
+    return world_from_dict({'name': f'pillar_hall_{size:g}',
+                            'boundary': [[0, 0], [size, 0], [size, size], [0, size]],
+                            'obstacles': pillars, 'start': [1.0, 1.0]})
+
+
+def scaling(sizes: Iterable[float] = HALL_SIZES) -> list[dict[str, object]]:
+    """Both planners on pillar halls of growing area: planner time per sweep and wall time."""
+    rows = []
+    for size in sizes:
+        world = pillar_hall(size)
+        for name, config in (('paper', PaperConfig()), ('grid', PlannerConfig())):
+            row = _run(world, config, max_time=6000.0)
+            row.update(world=world.name, planner=name)
+            rows.append(row)
+    return rows
+
+
 def write_report(out_dir: Path, quick: bool = False) -> list[Path]:
     """Rerun the headline measurements; write ``out_dir/coverage.md`` and its PNG.
 
     ``quick``: the hand-made worlds and one generated world, the grid planner on the hand-made
-    worlds only (under two minutes); the full run uses six generated worlds and both planners.
+    worlds only (under two minutes); the full run uses six generated worlds (seeds 100-105),
+    six held-out ones (seeds 200-205) and the pillar halls, with both planners.
     """
     from coverage_pkg.figure import render_coverage
     from coverage_pkg.worldgen import write_worlds
@@ -116,11 +154,18 @@ def write_report(out_dir: Path, quick: bool = False) -> list[Path]:
     out_dir.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
     count = 1 if quick else 6
+    sets = {'hand-made': [WORLDS / f'{name}.json' for name in HAND_MADE]}
+    rows = []
     with tempfile.TemporaryDirectory() as tmp:
-        generated = write_worlds(tmp, count, seed=100)
-        rows = comparison([WORLDS / f'{name}.json' for name in HAND_MADE]
-                          + [Path(p) for p in generated], quick)
+        for seed in (100,) if quick else (100, 200):
+            sets[f'seeds {seed}-{seed + count - 1}' if count > 1 else f'seed {seed}'] = [
+                Path(w) for w in write_worlds(str(Path(tmp) / str(seed)), count, seed=seed)]
+        for group, worlds in sets.items():
+            for row in comparison(worlds, quick):
+                row['set'] = group
+                rows.append(row)
     abl = ablations()
+    halls = [] if quick else scaling()
     pngs = []
     for name in ('paper', 'grid'):
         demo = next(r for r in rows if r['world'] == 'demo_rooms' and r['planner'] == name)
@@ -145,7 +190,9 @@ def write_report(out_dir: Path, quick: bool = False) -> list[Path]:
              f'- command: `{cmd}` (or `paramotion report`); {elapsed:.0f} s',
              '- loop: ROS-free (`coverage_pkg/kinematic.py`): kinematic disk robot r = 0.25 m, '
              'simulated 16-transducer sonar ring (max range 5 m), detector range delta = 2 m; '
-             f'generated worlds: `paramotion coverage-worlds --count {count} --seed 100`', '',
+             'generated worlds: ' + ', '.join(
+                 f'`paramotion coverage-worlds --count {count} --seed {g.split()[1][:3]}`'
+                 for g in sets if g.startswith('seed')), '',
              '## Paper planner and grid planner on the same worlds', '',
              'paper: Algorithm 1 driven by sensed events alone (`--planner paper`, the '
              'default). grid: the frontier-driven evidence-grid planner (ours, not the '
@@ -153,22 +200,25 @@ def write_report(out_dir: Path, quick: bool = False) -> list[Path]:
              'pillar (`coverage_pkg/worlds/pillar_room.json`). Bound: '
              '|CVS| / (2 delta). Primitives: share of the path driven by laps, boundary '
              'following and GVD following (the rest is transit along traced paths).', '']
-    lines += _table(['world', 'planner', 'end', 'covered CVS', 'path / bound', 'primitives',
-                     'sim s', 'wall s', 'update median ms', 'update p99 ms'],
-                    [(r['world'], r['planner'], r['state'], _pct(r['covered']),
-                      _num(r['ratio']), _pct(r.get('primitive_share')), _num(r['sim'], 0),
-                      _num(r['wall'], 1), _num(r['median_ms']), _num(r['p99_ms']))
-                     for r in rows])
-    for name in ('paper', 'grid'):
-        mine = [r for r in rows if r['planner'] == name and r['world'] not in HAND_MADE]
-        if mine:
-            lines += ['', f'- {name}, {len(mine)} generated worlds: mean covered '
-                      f'{_pct(float(np.mean([r["covered"] for r in mine])))}, min '
-                      f'{_pct(min(r["covered"] for r in mine))}, mean path / bound '
-                      f'{_num(float(np.mean([r["ratio"] for r in mine])))}'
-                      + (f', mean primitive share '
-                         f'{_pct(float(np.mean([r["primitive_share"] for r in mine])))}'
-                         if name == 'paper' else '')]
+    lines += _rows_table(rows, first=('set', 'world'))
+    lines += ['']
+    for group in (g for g in sets if g.startswith('seed')):
+        for name in ('paper', 'grid'):
+            mine = [r for r in rows if r['planner'] == name and r['set'] == group]
+            if mine:
+                lines += [f'- {name}, generated worlds {group}: mean covered '
+                          f'{_pct(float(np.mean([r["covered"] for r in mine])))}, min '
+                          f'{_pct(min(r["covered"] for r in mine))}, mean path / bound '
+                          f'{_num(float(np.mean([r["ratio"] for r in mine])))}'
+                          + (f', mean primitive share '
+                             f'{_pct(float(np.mean([r["primitive_share"] for r in mine])))}'
+                             if name == 'paper' else '')]
+    if halls:
+        lines += ['', '## Planner time against world size', '',
+                  'Square pillar halls (`coverage_pkg/report.py: pillar_hall`: 1 m pillars on a '
+                  f'5 m grid) of side {" and ".join(f"{s:g}" for s in HALL_SIZES)} m (area x4). '
+                  'update: wall time of one planner update per sonar sweep (10 per sim s).', '']
+        lines += _rows_table(halls, first=('world',))
     lines += ['', '## Ablations of the paper planner', '',
               'Each row switches the sensing of one event off (`--without EVENT`) on the '
               'packaged world made to show it (`coverage_pkg/worlds/`).', '']
