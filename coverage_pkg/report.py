@@ -51,7 +51,7 @@ ABLATIONS = (
 
 
 def _run(world, config, max_time=3000.0):
-    r = run_kinematic(world, config, max_time=max_time)
+    r = run_kinematic(world, config, max_time=max_time, clock=time.thread_time)
     ut = np.asarray(r['update_times']) * 1e3
     row = {'state': r['state'], 'covered': r['covered_fraction'],
            'ratio': r['path_length'] / r['lower_bound'], 'path': r['path_length'],
@@ -185,8 +185,8 @@ def write_report(out_dir: Path, quick: bool = False) -> list[Path]:
     lines = ['# Coverage with an extended-range detector: measured results', '',
              f'- date: {time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())}',
              f'- machine: {platform.node()}, {platform.processor() or "unknown CPU"}, '
-             f'{os.cpu_count()} cores (shared with other jobs: planner times are upper '
-             f'bounds); Python {sys.version.split()[0]}',
+             f'{os.cpu_count()} cores (shared with other jobs: wall times include their '
+             f'load); Python {sys.version.split()[0]}',
              f'- command: `{cmd}` (or `paramotion report`); {elapsed:.0f} s',
              '- loop: ROS-free (`coverage_pkg/kinematic.py`): kinematic disk robot r = 0.25 m, '
              'simulated 16-transducer sonar ring (max range 5 m), detector range delta = 2 m; '
@@ -199,7 +199,10 @@ def write_report(out_dir: Path, quick: bool = False) -> list[Path]:
              "paper's, `--planner grid`). pillar_room: a 9 m x 6 m room with a 1.5 m x 1 m "
              'pillar (`coverage_pkg/worlds/pillar_room.json`). Bound: '
              '|CVS| / (2 delta). Primitives: share of the path driven by laps, boundary '
-             'following and GVD following (the rest is transit along traced paths).', '']
+             'following and GVD following (the rest is transit along traced paths). Update: '
+             'CPU time of one planner update per sonar sweep (`time.thread_time`, free of '
+             "other jobs' load); wall s: the whole run (sonar model, CVS accounting, planner).",
+             '']
     lines += _rows_table(rows, first=('set', 'world'))
     lines += ['']
     for group in (g for g in sets if g.startswith('seed')):
@@ -216,8 +219,8 @@ def write_report(out_dir: Path, quick: bool = False) -> list[Path]:
     if halls:
         lines += ['', '## Planner time against world size', '',
                   'Square pillar halls (`coverage_pkg/report.py: pillar_hall`: 1 m pillars on a '
-                  f'5 m grid) of side {" and ".join(f"{s:g}" for s in HALL_SIZES)} m (area x4). '
-                  'update: wall time of one planner update per sonar sweep (10 per sim s).', '']
+                  f'5 m grid) of side {" and ".join(f"{s:g}" for s in HALL_SIZES)} m (area x4), '
+                  'both planners; update as above (10 sweeps per sim s).', '']
         lines += _rows_table(halls, first=('world',))
     lines += ['', '## Ablations of the paper planner', '',
               'Each row switches the sensing of one event off (`--without EVENT`) on the '
