@@ -249,6 +249,7 @@ def test_encoder_nan_refused():
     del model
 
 
+@pytest.mark.slow            # a climb of three cycles, then a descent
 def test_descend_after_climbing():
     trunk = unseen_trunk('lean', length=5.0)
     gait, model, _ = climb(trunk, n_cycles=3)

@@ -28,6 +28,7 @@ def _graph(graph, planner_params):
     return nodes['climber_sim'], nodes['climber_planner'], commands
 
 
+@pytest.mark.slow            # climbs for seconds of sim time through the lifecycle
 def test_managed_planner_activates_only_with_its_inputs_and_stops_when_deactivated():
     with Graph() as graph:
         sim, planner, commands = _graph(graph, {'autostart': False})

@@ -60,6 +60,7 @@ def graph():
         yield g
 
 
+@pytest.mark.slow            # the paper query through the node (the planner test solves it too)
 def test_get_plan_returns_a_verified_path_and_latches_outputs(graph):
     node = graph.add(VoronoiPlannerNode, grid_spacing=1.0, slice_step_deg=2.5)
     client = _Client(graph)

@@ -214,6 +214,7 @@ def test_query_across_the_base_line_singularity_answers_no_path_at_once(paper_pl
     assert 'slices' not in res.stats          # decided before any roadmap was built
 
 
+@pytest.mark.slow            # a diagram search over every slice
 def test_query_into_a_disconnected_region_answers_no_path(paper_planner):
     # Goal outside the boundary square (free for P2, as in the paper) in the same singularity
     # cell: only the roadmap search can tell that the boundary separates them.

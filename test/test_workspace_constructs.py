@@ -231,11 +231,12 @@ def check_cable_workpiece(backend='numpy', without=()):
 
 # --- the sets are informative and the code passes them ----------------------------------------
 
-#: The workpiece set's sampled reference takes seconds: its tests run with the slow ones.
+#: Building a pose set takes seconds (the references): the cable-body set runs with the unit
+#: tests, the cable-cable and workpiece sets with the slow ones.
 SLOW = pytest.mark.slow
 
 
-@pytest.mark.parametrize('decider', ['cable_cable', 'cable_body',
+@pytest.mark.parametrize('decider', [pytest.param('cable_cable', marks=SLOW), 'cable_body',
                                      pytest.param('cable_workpiece', marks=SLOW)])
 def test_pose_set_is_decided_by_one_type(decider):
     """Every set has many poses, both outcomes, and its expected share is not trivial."""
@@ -246,6 +247,7 @@ def test_pose_set_is_decided_by_one_type(decider):
     assert 40 <= total - free and free >= 40, (total, free)
 
 
+@SLOW
 @pytest.mark.parametrize('backend', ['numpy', 'numba'])
 def test_cable_cable_decides_its_set(backend):
     assert check_cable_cable(backend) == []
@@ -344,7 +346,7 @@ MUTATIONS = {
 
 
 @pytest.mark.parametrize('mutation', [
-    pytest.param(m, marks=SLOW) if MUTATIONS[m][2] is check_cable_workpiece else m
+    m if MUTATIONS[m][2] is check_cable_body else pytest.param(m, marks=SLOW)
     for m in sorted(MUTATIONS)])
 def test_mutation_is_detected(monkeypatch, mutation):
     """The decisive check of the broken construct reports a failure under the mutation."""
@@ -358,7 +360,7 @@ def test_mutation_is_detected(monkeypatch, mutation):
 
 
 @pytest.mark.parametrize('construct,check', [
-    ('cable_cable', check_cable_cable), ('cable_body', check_cable_body),
+    pytest.param('cable_cable', check_cable_cable, marks=SLOW), ('cable_body', check_cable_body),
     pytest.param('cable_workpiece', check_cable_workpiece, marks=SLOW),
     pytest.param('workpiece_sides', check_cable_workpiece, marks=SLOW)])
 def test_switching_a_construct_off_fails_its_check(construct, check):
