@@ -69,6 +69,7 @@ class PaperConfig:
     min_run: float = 0.5            # m, a stretch of a lap shorter than this is echo noise
     same_event: float = 0.5         # m, an event this near a known one is the known one
     view_margin: float = 0.3        # m, a GVD edge ends where all ahead is within delta - this
+    access_time: float = 10.0       # s, longest move from the start onto the GVD or into VR
     stuck_time: float = 6.0         # s commanded but not moving -> the target is given up
     max_stuck: int = 6              # stuck events in a row before the run stops
     detector: str = 'extended'      # the paper planner is for the extended-range detector
@@ -263,18 +264,20 @@ class PaperPlanner:
         self.last = {}                             # no decomposed map (the node's markers)
         self._cusp_dir = None                      # bearing into the narrow cell, this cusp
         self._cusp_dirs = {}                       # cusp (x, y) of an edge -> that bearing
+        self._on_gvd = False                       # this transit step follows a GVD edge
 
     # ------------------------------------------------------------------ inputs
 
     def on_odometry(self, t: float, x: float, y: float, yaw: float) -> None:
         """Robot pose in the odom frame at sim time t."""
         if all(math.isfinite(v) for v in (t, x, y, yaw)):
-            if self.pose is not None and self.mode:
+            kind = 'gvd' if self.mode == 'transit' and self._on_gvd else self.mode
+            if self.pose is not None and kind:
                 step = math.dist(self.pose[:2], (x, y))
-                if self.segments and self.segments[-1][0] == self.mode:
+                if self.segments and self.segments[-1][0] == kind:
                     self.segments[-1][1] += step
                 elif step > 0:
-                    self.segments.append([self.mode, step])
+                    self.segments.append([kind, step])
             self.pose = (float(x), float(y), float(yaw))
 
     def on_sweep(self, t: float, ranges: ArrayLike) -> None:
@@ -452,7 +455,7 @@ class PaperPlanner:
         if into is None or b.end_heading is None:
             return True
         out = math.atan2(b.end_heading[1], b.end_heading[0])
-        return abs(math.remainder(out - into - math.pi, 2 * math.pi)) < math.radians(60)
+        return abs(math.remainder(out - into - math.pi, 2 * math.pi)) < math.radians(45)
 
     def _created_from(self, v, w, into=None):
         """Vast node ``v`` was created while narrow node ``w`` was traced (its cusp ended a
@@ -543,6 +546,10 @@ class PaperPlanner:
             self.state = 'warmup'
             return Command(0.0, 0.0, self.cfg.spin_rate, self.state)
         if self.current is None and not self.nodes:
+            v = self._access(t)
+            if v is not None:
+                self.state = 'access'
+                return self._body(*self._guard(v))
             self.current = self.create_node('vast' if self.D > self.det else 'narrow',
                                             self.pose[:2]).id
             self._begin_node(self.nodes[self.current])
@@ -555,6 +562,21 @@ class PaperPlanner:
             return Command(0.0, 0.0, 0.0, self.state)
         self._check_stuck(t, v)
         return self._body(*self._guard(v))
+
+    def _access(self, t):
+        """Before CreateNode: a start within delta of a single obstacle lies neither on the
+        GVD nor in VR; the robot moves away from that obstacle until two closest obstacles
+        are equidistant (on the GVD: a narrow node) or D exceeds delta (a vast node), for
+        at most ``access_time`` s. None when the node can be created here."""
+        if self.D > self.det or t - self.t_first_sweep > self.cfg.warmup + \
+                self.cfg.access_time or not self.mins:
+            return None
+        d1, a = self.mins[0]
+        if any(d - d1 < 2 * self.cfg.event_tolerance and
+               abs(math.remainder(a - b, 2 * math.pi)) > math.radians(60)
+               for d, b in self.mins[1:]):
+            return None
+        return -np.array([math.cos(a), math.sin(a)]) * self.cfg.max_speed
 
     def _step(self, t):
         """One control step of the primitive being driven; None when it has just ended."""
@@ -608,12 +630,52 @@ class PaperPlanner:
         self.mode, self.task['after'] = 'transit', then
 
     def _transit_step(self):
+        """One step of the path to x(n) along the traced paths. Where the way runs along a
+        GVD edge (narrow space, the two closest echoes equal, the edge's tangent along the
+        way ahead), the robot follows that edge back by the GVD control law; elsewhere it
+        drives straight to the next waypoint."""
+        self._on_gvd = False
+        if len(self.route) > 1:               # passed: the nearest of the next waypoints
+            near = min(range(min(len(self.route), 8)),
+                       key=lambda i: math.dist(self.pose[:2], self.route[i]))
+            del self.route[:near]
         while self.route and math.dist(self.pose[:2], self.route[0]) < 0.2:
             self.route.pop(0)
         if not self.route:
             self.mode = self.task.pop('after', None)
             return None
+        v = self._retrace_velocity()
+        if v is not None:
+            self._on_gvd = True
+            return v
         return self._towards(self.route[0], self.cfg.max_speed)
+
+    def _retrace_velocity(self):
+        """GVD following towards the route's point ~1 m ahead; None off the GVD, or where
+        the edge's tangent does not lead there (a junction, a turn of the way)."""
+        if self.D > self.det or len(self.mins) < 2 or len(self.route) < 2:
+            return None
+        (d1, a1), (d2, a2) = self.mins[:2]
+        if abs(d1 - d2) > self.cfg.event_tolerance * 2:
+            return None
+        n1 = np.array([math.cos(a1), math.sin(a1)])
+        n2 = np.array([math.cos(a2), math.sin(a2)])
+        diff = n1 - n2
+        if np.linalg.norm(diff) < 1.0:         # the two obstacles not on either side
+            return None
+        tang = np.array([-diff[1], diff[0]]) / np.linalg.norm(diff)
+        goal = next((q for q in self.route if math.dist(q, self.pose[:2]) > 1.0),
+                    self.route[-1])
+        w = np.array(goal) - np.array(self.pose[:2])
+        if np.linalg.norm(w) < 0.5:
+            return None
+        w = w / np.linalg.norm(w)
+        if tang @ w < 0:
+            tang = -tang
+        if tang @ w < math.cos(math.radians(30)):
+            return None
+        v = tang * self.cfg.max_speed + diff / np.linalg.norm(diff) * (d1 - d2) * 2.0
+        return v if v @ w >= 0.7 * self.cfg.max_speed else None
 
     # ------------------------------------------------------------------ MorseDecompCoverage
 
@@ -853,19 +915,24 @@ class PaperPlanner:
         leave = self.task.setdefault('leave', self.pose[:2])
         if head is not None and math.dist(leave, self.pose[:2]) < 0.6:
             return np.asarray(head) * self.cfg.max_speed   # off the meet point, onto its edge
-        if len(self.mins) < 2:
-            return self._end_branch('dead_end')
-        (d1, a1), (d2, a2) = self.mins[:2]
-        n1 = np.array([math.cos(a1), math.sin(a1)])
-        n2 = np.array([math.cos(a2), math.sin(a2)])
-        diff = n1 - n2
+        n1 = np.array([math.cos(self.mins[0][1]), math.sin(self.mins[0][1])]) if self.mins \
+            else np.zeros(2)
+        diff = n1 - np.array([math.cos(self.mins[1][1]), math.sin(self.mins[1][1])]) \
+            if len(self.mins) >= 2 else np.zeros(2)
         if np.linalg.norm(diff) < 1e-6:
             return self._end_branch('dead_end')
+        (d1, a1), (d2, a2) = self.mins[:2]
+        n2 = np.array([math.cos(a2), math.sin(a2)])
         tang = np.array([-diff[1], diff[0]]) / np.linalg.norm(diff)
         if head is None:                  # from a cusp: into the narrow region (D falls)
             head = tang if tang @ (n1 + n2) >= 0 else -tang
-            if br.opened_by is None:      # the start: the GVD edge leaves it both ways
+            if br.opened_by is None:      # the start: the GVD edge leaves it both ways,
                 n.branches.append(Branch(self.pose[:2], tuple(-np.asarray(head)), None))
+                a = math.atan2(head[1], head[0])      # and other edges through its gaps
+                for b in self._free_bearings([a], self.det):
+                    if abs(math.remainder(b - a - math.pi, 2 * math.pi)) > math.radians(30):
+                        n.branches.append(Branch(self.pose[:2], (math.cos(b), math.sin(b)),
+                                                 None))
         if tang @ np.asarray(head) < 0:
             tang = -tang
         self.task['heading'] = tuple(tang)
@@ -873,6 +940,7 @@ class PaperPlanner:
         self.task['far'] = max(self.task.get('far', 0.0), math.dist(origin, self.pose[:2]))
         if self.echo(math.atan2(tang[1], tang[0])) <= self.cfg.radius + 0.35 or \
                 self._ahead_in_view(tang):
+            self._gap_at_end(n, tang)
             return self._end_branch('dead_end')
         if 'cusp' not in self.cfg.without and self.D > self.det + 0.1 and \
                 self.task['far'] > 1.0:
@@ -895,6 +963,37 @@ class PaperPlanner:
         self._cusp_dir = None
         return self._end_branch('cusp') if self.mode == 'gvd' else None
 
+    def _gap_at_end(self, n, heading):
+        """A GVD edge ends at an obstacle ahead; a gap between closest obstacles beyond
+        delta off the way back (a door, a corridor opening next to the corner) is another
+        GVD edge joining this one at a meet point here, which the three-echo test did not
+        place: it becomes a branch of the node (a meet event)."""
+        if 'meet' in self.cfg.without:
+            return
+        back = math.atan2(-heading[1], -heading[0])
+        for b in self._free_bearings([back], self.det):
+            if any(math.dist(q.start, self.pose[:2]) < 1.0 and q.heading is not None and
+                   abs(math.remainder(math.atan2(q.heading[1], q.heading[0]) - b,
+                                      2 * math.pi)) < math.radians(45) for q in n.branches):
+                continue
+            if self._been_along(b):
+                continue
+            idx = self._on_event(self.t_sweep, 'meet', self.pose[:2], 'a gap beyond delta '
+                                 f'at {math.degrees(b):.0f} deg where the GVD edge ends')
+            if idx is None:
+                return
+            n.meets.append((float(self.pose[0]), float(self.pose[1]), idx))
+            n.branches.append(Branch(self.pose[:2], (math.cos(b), math.sin(b)), idx))
+
+    def _been_along(self, bearing):
+        """The robot's traced path passes 0.7 m or 1.4 m out along ``bearing``."""
+        for s in (0.7, 1.4):
+            q = (self.pose[0] + s * math.cos(bearing), self.pose[1] + s * math.sin(bearing))
+            j = self.paths.nearest(q)
+            if j is not None and math.dist(self.paths.xy[j], q) < 0.5:
+                return True
+        return False
+
     def _ahead_in_view(self, heading):
         """Every echo of the half-ring ahead lies within the detector's range (less a margin
         for the cones' width): the edge ends at an obstacle the detector already sees whole
@@ -912,19 +1011,7 @@ class PaperPlanner:
         n.meets.append((float(xy[0]), float(xy[1]), idx))
         head = np.asarray(self.task.get('heading') or self.task['branch'].heading or (1.0, 0.0))
         back = math.atan2(-head[1], -head[0])
-        out = []
-        r = np.where(np.isfinite(self.ranges), self.ranges, 0.0)
-        k = len(r)
-        order = np.argsort(self.angles % (2 * math.pi))
-        r, ang = r[order], (self.angles % (2 * math.pi))[order]
-        for i in range(k):                # free bearings between the closest obstacles
-            if r[i] < r[i - 1] or r[i] < r[(i + 1) % k] or r[i] <= self.det:
-                continue                  # not a gap, or it ends in view of the detector
-            if abs(math.remainder(ang[i] - back, 2 * math.pi)) < math.radians(60):
-                continue                  # the edge the robot came along
-            if all(abs(math.remainder(ang[i] - o, 2 * math.pi)) > math.radians(45)
-                   for o in out):
-                out.append(float(ang[i]))
+        out = self._free_bearings([back], self.det)
         if not out:
             return
         out.sort(key=lambda m: abs(math.remainder(m - math.atan2(head[1], head[0]),
@@ -934,6 +1021,27 @@ class PaperPlanner:
         self.task['heading'] = (math.cos(out[0]), math.sin(out[0]))
         self.task['meet'] = idx
         self.task['leave'] = self.pose[:2]
+
+    def _free_bearings(self, exclude, beyond):
+        """Bearings of the GVD edges leaving the robot's place: local maxima of the ring's
+        range over bearing (a gap between two closest obstacles) reaching beyond ``beyond``
+        (an edge whose end is in the detector's view is not one to trace), at least 60
+        degrees from each bearing of ``exclude`` and 45 degrees from one another."""
+        out = []
+        r = np.where(np.isfinite(self.ranges), self.ranges, 0.0)
+        k = len(r)
+        order = np.argsort(self.angles % (2 * math.pi))
+        r, ang = r[order], (self.angles % (2 * math.pi))[order]
+        for i in range(k):
+            if r[i] < r[i - 1] or r[i] < r[(i + 1) % k] or r[i] <= beyond:
+                continue
+            if any(abs(math.remainder(ang[i] - e, 2 * math.pi)) < math.radians(60)
+                   for e in exclude):
+                continue
+            if all(abs(math.remainder(ang[i] - o, 2 * math.pi)) > math.radians(45)
+                   for o in out):
+                out.append(float(ang[i]))
+        return out
 
     def _end_branch(self, how):
         br = self.task.get('branch')
