@@ -18,9 +18,19 @@ the sonar ring senses; no map is decomposed. The subroutines map one to one onto
   the GVD edge by a control law on its two closest echoes; a *meet point* (three closest
   obstacles equidistant) adds the GVD branches leaving it; the narrow node is covered when
   every branch has ended at a cusp point, a dead end or a meet point already known.
-* :meth:`PaperPlanner.find_uncovered_node` is ``FindUncoveredNode(N)``; the path to ``x(n)``
-  runs along the robot's own traced path (:class:`TracedPaths`): a sample joins another when
-  the segment between them lies in the free disk the ring measured there.
+* :meth:`PaperPlanner.find_uncovered_node` is ``FindUncoveredNode(N)``, the uncovered node
+  nearest along the traced paths; the path to ``x(n)`` runs along the robot's own traced path
+  (:class:`TracedPaths`): a sample joins another when the segment between them lies in the
+  free disk the ring measured there. Where that way runs back along a traced GVD edge, the
+  robot follows the edge by the GVD control law (:meth:`PaperPlanner._retrace_velocity`).
+
+Sensing details the paper leaves open: a cusp is known only on the same GVD edge (its bearing
+into the narrow cell), since the cusps of a small vast cell lie within a step of one another;
+D rising above delta on a traced edge is a cusp at the robot (Fig. 11) where the ring's
+two-echo test placed none; a GVD edge ends where all ahead is within the detector's view,
+and a gap beyond delta beside that end (a door by a corner) is a branch (a meet event); a
+start on neither the GVD nor VR first moves off its single closest obstacle
+(:meth:`PaperPlanner._access`).
 
 ``without`` switches the sensing of one event kind off (``cusp``, ``critical``, ``meet``), so
 that the run shows what the paper predicts without it. Plain numpy; no ROS.

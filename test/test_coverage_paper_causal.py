@@ -137,3 +137,122 @@ def test_a_cusp_injected_into_the_scan_stream_creates_a_node_the_robot_goes_to()
     assert min(math.dist((x, y), node.anchor) for t, x, y in state['track']
                if t > t_chosen) < 0.3
     assert r['state'] == 'done' and node.covered
+
+
+# ---------------------------------------------------------------- single sweeps, no loop
+
+def _sensing(world, xy, kind='narrow', **kw):
+    """A paper planner at ``xy`` in ``world`` after one ring sweep there, covering a node of
+    ``kind`` created at ``xy``."""
+    from coverage_pkg.algorithm1 import PaperPlanner
+    from coverage_pkg.sonar import SonarRing, simulate_ring
+    ring = SonarRing()
+    p = PaperPlanner(PaperConfig(**kw), ring.mount_angles(), ring.beam_width, ring.min_range,
+                     ring.max_range)
+    w = world_from_dict(world)
+    p.on_odometry(0.0, xy[0], xy[1], 0.0)
+    p.on_sweep(0.0, simulate_ring(w, (xy[0], xy[1], 0.0), ring, np.random.default_rng(0)))
+    p.current = p.create_node(kind, xy).id
+    return p
+
+
+# A corridor 1.4 m wide along x, closed at x = 6; a 1 m door in its lower wall (0.2 m thick)
+# at the closed end opens onto a room below.
+DOOR_END = {'name': 'door_end',
+            'boundary': [[0, 0], [4.6, 0], [4.6, -0.2], [3, -0.2], [3, -4], [8, -4], [8, -0.2],
+                         [5.6, -0.2], [5.6, 0], [6, 0], [6, 1.4], [0, 1.4]], 'obstacles': [],
+            'start': [1, 0.7]}
+
+
+@pytest.mark.parametrize('without, been_there, branches', [
+    ((), False, 1), (('meet',), False, 0), ((), True, 0)])
+def test_a_door_beside_a_dead_end_is_a_branch_of_the_narrow_node(without, been_there,
+                                                                 branches):
+    """TraceGVD: the corridor's GVD edge ends at its closed end (the wall 0.7 m ahead); the
+    door beside it is a gap beyond delta off the way back, another GVD edge joining there (a
+    meet point the three-echo test did not place): it becomes a branch, unless meet sensing
+    is off or the robot's traced path already leads through it."""
+    p = _sensing(DOOR_END, (5.3, 0.7), without=without)
+    if been_there:
+        for y in (0.3, -0.1, -0.5, -0.9, -1.3):
+            p.paths.add(5.1, y, 0.6)
+    n = p.nodes[p.current]
+    p._gap_at_end(n, (1.0, 0.0))
+    assert len(n.branches) == branches
+    if branches:
+        hx, hy = n.branches[0].heading
+        assert hy < -0.8                                     # down, through the door
+        assert [e[1] for e in p.events][-1] == 'meet'
+
+
+CORRIDOR = {'name': 'corridor', 'boundary': [[0, 0], [12, 0], [12, 1.4], [0, 1.4]],
+            'obstacles': [], 'start': [1, 0.7]}
+
+
+def test_a_gvd_edge_ends_where_all_ahead_is_in_the_detectors_view():
+    """A corridor's GVD edge is traced only until the closed end ahead lies within delta (less
+    the cones' margin): the rest of it is covered from there."""
+    assert _sensing(CORRIDOR, (10.6, 0.7))._ahead_in_view((1.0, 0.0))
+    assert not _sensing(CORRIDOR, (6.0, 0.7))._ahead_in_view((1.0, 0.0))
+    assert not _sensing(CORRIDOR, (10.6, 0.7))._ahead_in_view((-1.0, 0.0))
+
+
+def test_the_way_back_along_a_traced_gvd_edge_is_driven_by_the_gvd_control_law():
+    """The path to x(n) through a corridor already traced follows its GVD edge by the control
+    law on the two closest echoes (recorded as gvd); where the way leaves the edge's tangent
+    (a turn), the robot drives straight to the waypoint (transit)."""
+    p = _sensing(CORRIDOR, (4.0, 0.8))
+    p.mode, p.task = 'transit', {'after': 'gvd'}
+    p.route = [(4.5, 0.7), (5.0, 0.7), (5.5, 0.7), (6.0, 0.7)]
+    v = p._transit_step()
+    assert p._on_gvd and v[0] > 0.8 and v[1] < 0.0            # along +x, back to the centre
+    p.on_odometry(0.1, 4.1, 0.8, 0.0)
+    assert p.segments[-1][0] == 'gvd'
+    p.route = [(4.0, 1.1), (4.0, 3.0)]                         # the way turns off the edge
+    p._transit_step()
+    assert not p._on_gvd
+    p.on_odometry(0.2, 4.1, 1.0, 0.0)
+    assert p.segments[-1][0] == 'transit'
+
+
+def test_a_cusp_within_a_step_of_a_known_one_on_another_gvd_edge_creates_its_own_node():
+    """A small vast cell's cusps lie within a step of one another; a cusp is the known one
+    only on the same GVD edge (bearing into its narrow cell within 30 degrees), so the corner
+    beside a known cusp still gets its narrow node and edge."""
+    p = _sensing(ROOM, (6.0, 4.0), kind='vast')
+    for into, new in ((0.0, True), (10.0, False), (90.0, True), (80.0, False)):
+        count = len(p.nodes)
+        p._cusp_dir = math.radians(into)
+        p._on_event(0.0, 'cusp', (6.2, 4.1), 'injected')
+        assert (len(p.nodes) == count + 1) == new, into
+    assert [n.kind for n in p.nodes] == ['vast', 'narrow', 'narrow']
+    assert len(p.edges) == 2
+
+
+@pytest.mark.parametrize('filtered', [False, True])
+def test_d_rising_above_delta_on_a_traced_edge_is_a_cusp_at_the_robot(filtered):
+    """Fig. 11: D rises above delta while the robot follows a GVD edge; where the ring's
+    two-echo cusp test placed no cusp, the robot's own place is the cusp: the vast node beyond
+    it and the edge are created (not when that cusp is suppressed)."""
+    p = _sensing(ROOM, (6.0, 4.0))
+    if filtered:
+        p.event_filter = lambda kind, xy: kind != 'cusp'
+    p._begin_node(p.nodes[p.current])
+    p.mode, p.task = 'gvd', {'branch': p.nodes[p.current].branches[0], 'heading': (1.0, 0.0)}
+    p._cusp_ahead(np.array([1.0, 0.0]))
+    assert [n.kind for n in p.nodes] == (['narrow'] if filtered else ['narrow', 'vast'])
+    assert p.nodes[0].branches[0].end == 'cusp'
+    if not filtered:
+        assert p.edges == [(1, 0, (6.0, 4.0))]
+
+
+def test_a_start_beside_a_single_wall_moves_off_it_before_createnode():
+    """CreateNode(x, D(x)) at a start 0.7 m from one wall of a 12 x 8 m room (on neither the
+    GVD nor VR): the robot first moves away from the wall; the node is created where D
+    exceeds delta, so the start node is the room's vast node."""
+    world = dict(ROOM, start=[6.0, 7.3])
+    r = _run(world, max_time=5.0, event_filter=None)
+    p = r['planner']
+    assert p.nodes and p.nodes[0].kind == 'vast'
+    assert 8.0 - p.nodes[0].anchor[1] >= 2.0
+    assert p.nodes[0].anchor[1] < 7.3 - 0.5
