@@ -2,6 +2,8 @@
 never asserted here), a missing world is reported as not measured, bad options are refused."""
 import json
 
+import pytest
+
 from paramotion.cli import main
 
 KEYS = ['fk_single_per_s', 'fk_batched_per_s', 'kntu_poses_per_s', 'rho_per_s',
@@ -14,6 +16,7 @@ def _last_json(capsys):
     return json.loads(lines[-1]), lines
 
 
+@pytest.mark.slow
 def test_bench_quick_json_has_every_key_as_a_positive_number(capsys):
     assert main(['bench', '--json', '--quick']) == 0
     res, lines = _last_json(capsys)
@@ -69,6 +72,7 @@ def test_shared_package_imports_no_robot_package():
     assert offenders == []
 
 
+@pytest.mark.slow
 def test_write_report_measures_each_lever_on_the_lockstep_benchmarks(monkeypatch, tmp_path):
     """The performance page: every figure, then one row per Graph lever, each measured with
     that lever's Graph defaults in force (seen by the benchmark itself)."""

@@ -78,6 +78,7 @@ def _feed_series(composed, duration=0.6):
     return series
 
 
+@pytest.mark.slow
 def test_composed_control_nodes_compute_what_separate_nodes_compute():
     """Same nodes, same executor order: bit-identical feed and leg series."""
     separate = _feed_series(False)

@@ -203,6 +203,7 @@ def test_bench_refuses_bad_arguments():
         bench_real_time_factor(duration=1.0, repeat=0)
 
 
+@pytest.mark.slow
 def test_graph_levers_leave_the_fast_run_bit_identical(monkeypatch):
     """The lock-step Graph's speed levers (its own drain, time set directly, no parameter
     services in a private graph) change nothing: the FAST series equal those of rclpy's

@@ -2,6 +2,7 @@
 import random
 import time
 
+import pytest
 from rclpy.parameter import Parameter
 
 from paramotion.bag.reader import read_messages
@@ -21,6 +22,7 @@ def test_smoke_graph_reaches_target_on_sim_time(tmp_path):
     assert 155 <= result['readings'] <= 160
 
 
+@pytest.mark.slow
 def test_lockstep_results_do_not_depend_on_wall_clock_speed(tmp_path):
     """Two runs, one slowed down at random between steps, record identical messages."""
     def run(bag, slow):
@@ -144,6 +146,7 @@ def test_sim_time_timers_fire_on_time_with_the_new_clock():
                                  1_000_000_000]
 
 
+@pytest.mark.slow
 def test_private_graph_is_not_heard_from_outside(monkeypatch):
     """Without ROS_DOMAIN_ID a Graph turns discovery off: another context on the same domain
     never sees its publishers (no stray /clock can cross between runs)."""
@@ -178,6 +181,7 @@ def _smoke_bag(bag, executor):
         return graph.callbacks_run
 
 
+@pytest.mark.slow
 def test_lockstep_drain_records_what_the_single_threaded_executor_does(tmp_path):
     """The Graph's own drain runs the same callbacks in the same order as rclpy's
     SingleThreadedExecutor: every recorded message, with its receive time, is identical."""

@@ -69,6 +69,7 @@ def _launch_file(tmp_path, body):
     return str(path)
 
 
+@pytest.mark.slow
 def test_missing_executable_fails_with_one_line_and_starts_nothing(tmp_path):
     path = _launch_file(tmp_path, '  <node pkg="paramotion" exec="coverage_sim"/>\n'
                         '  <node pkg="paramotion" exec="coverage_planer" name="planner"/>')
@@ -81,6 +82,7 @@ def test_missing_executable_fails_with_one_line_and_starts_nothing(tmp_path):
     assert 'process started' not in r.stdout
 
 
+@pytest.mark.slow
 def test_unknown_parameter_fails_with_one_line_and_starts_nothing(tmp_path):
     path = _launch_file(tmp_path, '  <node pkg="paramotion" exec="coverage_planner">\n'
                         '    <param name="dleta" value="2.0"/>\n  </node>')
@@ -92,6 +94,7 @@ def test_unknown_parameter_fails_with_one_line_and_starts_nothing(tmp_path):
     assert 'process started' not in r.stdout
 
 
+@pytest.mark.slow
 def test_node_started_by_hand_refuses_an_undeclared_parameter():
     """What ``ros2 run``/``ros2 launch`` users get: the node itself names the parameter."""
     from paramotion.launch import find_executable
