@@ -1162,8 +1162,10 @@ class PaperPlanner:
             d, a = self.mins[0]               # the followed obstacle's point
             circ.setdefault('wall', []).append((self.pose[0] + d * math.cos(a),
                                                 self.pose[1] + d * math.sin(a)))
-        if (tk['length'] > 3.0 and math.dist(tk['origin'], self.pose[:2]) < 0.4) or \
-                tk['length'] > 500.0:
+        back = math.dist(tk['origin'], self.pose[:2])
+        passed = tk['length'] > 3.0 and tk.get('back', math.inf) < 0.8 and back > tk['back']
+        tk['back'] = back                     # closest pass by the start counts as back
+        if (tk['length'] > 3.0 and back < 0.4) or passed or tk['length'] > 500.0:
             circ['done'] = True
             self._same_cell(n, circ['trace'])
             self._beyond(n, circ)
