@@ -14,6 +14,9 @@ noisier and flagged ``"quick": true``.
 speed levers switched one at a time on the parts' lock-step benchmarks, and each part's own
 extra tables (e.g. a graph across processes).
 """
+from __future__ import annotations
+
+import argparse
 import datetime
 import importlib
 import json
@@ -21,12 +24,18 @@ import os
 import platform
 import sys
 import time
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
+from types import ModuleType
+from typing import Any
 
 from paramotion.errors import UserError
 
+#: One benchmark: ``function(quick, options) -> {key: figure}`` and ``{key: label}``.
+Bench = tuple[Callable[[bool, dict[str, Any]], dict[str, Any]], dict[str, str]]
 
-def bench_modules():
+
+def bench_modules() -> list[ModuleType]:
     """The parts' bench modules that import here, in :data:`paramotion.cli.BENCH_MODULES`
     order (a part that is not installed is skipped, as the CLI skips its subcommand)."""
     from paramotion.cli import BENCH_MODULES
@@ -41,7 +50,7 @@ def bench_modules():
     return modules
 
 
-def benches():
+def benches() -> dict[str, Bench]:
     """``{name: (function, {key: label})}`` over every bench module."""
     out = {}
     for module in bench_modules():
@@ -49,18 +58,20 @@ def benches():
     return out
 
 
-def lockstep_benches():
+def lockstep_benches() -> list[str]:
     """Names of the benchmarks that run a lock-step Graph (the ones its levers change)."""
     return [n for m in bench_modules() for n in getattr(m, 'LOCKSTEP', ())]
 
 
-def cores():
+def cores() -> dict[str, int | None]:
     """Logical cores of the machine and those this process may run on."""
     from paramotion.backend import usable_cores
     return {'cpu_count': os.cpu_count(), 'usable_cores': usable_cores()}
 
 
-def run_benchmarks(names, quick=False, options=None, log=print):
+def run_benchmarks(names: Iterable[str], quick: bool = False,
+                   options: Mapping[str, Any] | None = None,
+                   log: Callable[[str], object] = print) -> dict[str, Any]:
     """Run the benchmarks ``names`` (keys of :func:`benches`); returns the figures dict.
 
     A benchmark that cannot run (missing input, a part failing) gives ``None`` for its keys and
@@ -83,11 +94,11 @@ def run_benchmarks(names, quick=False, options=None, log=print):
     return out
 
 
-def _format(v):
+def _format(v: float) -> str:
     return f'{v:14.3f}' if v < 100 else f'{v:14,.0f}'
 
 
-def table(res):
+def table(res: Mapping[str, Any]) -> list[str]:
     """The figures as printable lines."""
     lines = [f'{"figure":38s} {"value":>14s}']
     for name, (_, keys) in benches().items():
@@ -125,7 +136,10 @@ LEVERS = [
 ]
 
 
-def measure_levers(names, quick=False, options=None, log=print, repeat=2):
+def measure_levers(names: Iterable[str], quick: bool = False,
+                   options: Mapping[str, Any] | None = None,
+                   log: Callable[[str], object] = print,
+                   repeat: int = 2) -> list[tuple[str, dict[str, Any]]]:
     """Run the lock-step benchmarks ``names`` once per :data:`LEVERS` row, ``repeat`` times
     with the rows in alternating order (so a change of the machine's load during the runs
     weighs on every row alike), keeping each figure's best run; returns
@@ -146,7 +160,8 @@ def measure_levers(names, quick=False, options=None, log=print, repeat=2):
     return [(label, figures) for (label, _), figures in zip(LEVERS, best)]
 
 
-def _lever_lines(rows, names):
+def _lever_lines(rows: Sequence[tuple[str, Mapping[str, Any]]],
+                 names: Iterable[str]) -> list[str]:
     keys = [(k, lab) for n in names for k, lab in benches()[n][1].items()]
     lines = ['| Graph configuration | ' + ' | '.join(lab for _, lab in keys) + ' | load |',
              '|---|' + '---|' * (len(keys) + 1)]
@@ -157,11 +172,11 @@ def _lever_lines(rows, names):
     return lines
 
 
-def _log_stderr(message):
+def _log_stderr(message: str) -> None:
     print(message, file=sys.stderr, flush=True)
 
 
-def write_report(out_dir: Path, quick: bool = False) -> list:
+def write_report(out_dir: Path, quick: bool = False) -> list[Path]:
     """Measure every figure, the Graph levers and the parts' extra tables; write
     ``<out_dir>/performance.md`` and return ``[path]``."""
     out_dir = Path(out_dir)
@@ -211,7 +226,7 @@ def write_report(out_dir: Path, quick: bool = False) -> list:
 
 
 # ------------------------------------------------------------------------------ CLI
-def _main(args):
+def _main(args: argparse.Namespace) -> int:
     available = benches()
     names = list(available) if not args.only else [n.strip() for n in args.only.split(',')]
     bad = [n for n in names if n not in available]
@@ -232,7 +247,7 @@ def _main(args):
     return 0
 
 
-def register(subparsers):
+def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``paramotion bench``."""
     p = subparsers.add_parser('bench', help='run every headline benchmark once, print a table',
                               description=__doc__.split('\n')[0])

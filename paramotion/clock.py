@@ -11,8 +11,12 @@ A :class:`ClockSourceNode` advances simulated time in fixed periods. Two ways to
   steady wall-clock timer calls :meth:`advance` at ``real_time_factor`` times real time, so
   nodes in other processes see ``/clock`` advance smoothly over DDS.
 """
+from __future__ import annotations
+
 import time
 from collections import deque
+from collections.abc import Callable
+from typing import Any
 
 from builtin_interfaces.msg import Time
 from rclpy.clock import Clock, ClockType
@@ -24,7 +28,7 @@ from paramotion.qos import CLOCK_QOS
 NS = 1_000_000_000
 
 
-def stamp_from_ns(ns):
+def stamp_from_ns(ns: int) -> Time:
     """builtin_interfaces/Time from integer nanoseconds."""
     return Time(sec=int(ns // NS), nanosec=int(ns % NS))
 
@@ -57,7 +61,7 @@ class ClockSourceNode(ParamotionNode):
               min=0.01, max=60.0, read_only=True),
     )
 
-    def __init__(self, node_name, **kwargs):
+    def __init__(self, node_name: str, **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
         self.sim_time_ns = 0
         self._period_ns = int(round(self.params.publish_period * NS))
@@ -65,7 +69,7 @@ class ClockSourceNode(ParamotionNode):
         self._wall_timer = None
         #: Called with each ``/clock`` message right after it is published (a lock-step
         #: :class:`paramotion.graph.Graph` sets its nodes' clocks this way).
-        self.clock_hooks = []
+        self.clock_hooks: list[Callable[[ClockMsg], None]] = []
         self._waiting = (self.params.wait_for_clock_subscribers > 0
                          or any(self.params.wait_for_matched))
         #: Per answering controller: [stamp of its last answer, its period, its last
@@ -78,7 +82,8 @@ class ClockSourceNode(ParamotionNode):
         if not self.params.lockstep:
             self._start_free_running()
 
-    def check_params(self, values):
+    def check_params(self, values: dict[str, Any]) -> str | None:
+        """Refuse a ``wait_for_matched`` entry that is not ``'topic:count'``."""
         for entry in values['wait_for_matched']:
             topic, sep, count = entry.rpartition(':')
             if entry and (not sep or not topic or not count.isdigit()):
@@ -87,26 +92,27 @@ class ClockSourceNode(ParamotionNode):
         return None
 
     @property
-    def sim_time(self):
+    def sim_time(self) -> float:
         """Current simulated time in seconds."""
         return self.sim_time_ns / NS
 
-    def stamp(self):
+    def stamp(self) -> Time:
         """Current simulated time as builtin_interfaces/Time, for message headers."""
         return stamp_from_ns(self.sim_time_ns)
 
-    def _start_free_running(self):
+    def _start_free_running(self) -> None:
         rtf = self.params.real_time_factor
         period = self.params.publish_period / rtf if rtf > 0 else 0.0
         self._wall_timer = self.create_timer(
             period, self._free_running_tick, clock=Clock(clock_type=ClockType.STEADY_TIME))
 
-    def on_params_changed(self, changed):
+    def on_params_changed(self, changed: dict[str, Any]) -> None:
+        """Restart the wall-clock timer at the new ``real_time_factor``."""
         if 'real_time_factor' in changed and self._wall_timer is not None:
             self.destroy_timer(self._wall_timer)
             self._start_free_running()
 
-    def _start_condition_met(self):
+    def _start_condition_met(self) -> bool:
         if self._clock_pub.get_subscription_count() < self.params.wait_for_clock_subscribers:
             return False
         counts = {}
@@ -120,7 +126,7 @@ class ClockSourceNode(ParamotionNode):
                     return False
         return True
 
-    def answered(self, source, stamp_ns):
+    def answered(self, source: str, stamp_ns: int) -> None:
         """Subclass hook: controller ``source`` answered the state of sim time ``stamp_ns``
         (the stamp of the command it computed from that state).
 
@@ -137,7 +143,7 @@ class ClockSourceNode(ParamotionNode):
             entry[1] = sorted(entry[2])[len(entry[2]) // 2]
             entry[0] = stamp_ns
 
-    def _late_answer(self):
+    def _late_answer(self) -> str | None:
         """The first controller whose answer is overdue by more than the lag, else None."""
         limit = self.sim_time_ns - self._sync_lag_ns
         for source, (last, interval, _) in self.answers.items():
@@ -145,7 +151,7 @@ class ClockSourceNode(ParamotionNode):
                 return source
         return None
 
-    def _must_wait_for_answer(self):
+    def _must_wait_for_answer(self) -> bool:
         if self._sync_lag_ns < 0:
             return False
         late = self._late_answer()
@@ -171,7 +177,7 @@ class ClockSourceNode(ParamotionNode):
                 'advancing without it')
         return False
 
-    def _free_running_tick(self):
+    def _free_running_tick(self) -> None:
         if self._waiting:
             if not self._start_condition_met():
                 return
@@ -180,7 +186,7 @@ class ClockSourceNode(ParamotionNode):
             return
         self.advance()
 
-    def advance(self):
+    def advance(self) -> None:
         """Advance simulated time by one period, then publish ``/clock`` and state."""
         self.advance_time(self._period_ns)
         self.sim_time_ns += self._period_ns
@@ -190,8 +196,8 @@ class ClockSourceNode(ParamotionNode):
             hook(msg)
         self.publish_state()
 
-    def advance_time(self, period_ns):
+    def advance_time(self, period_ns: int) -> None:
         """Subclass hook: bring the world from ``sim_time_ns`` to ``sim_time_ns + period_ns``."""
 
-    def publish_state(self):
+    def publish_state(self) -> None:
         """Subclass hook: publish what the world looks like at ``sim_time_ns``."""

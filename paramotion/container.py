@@ -25,13 +25,14 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Sequence
+from typing import Any
 
 from paramotion.node import Param, ParamotionNode, overrides_from_dict
 
 _NAME_RULES = ('__node', '__name', '__ns')
 
 
-def component_params(components: dict) -> tuple:
+def component_params(components: dict[str, type[ParamotionNode]]) -> tuple[Param, ...]:
     """The container's parameters for ``components`` ({node name: node class}): which to start,
     and ``<node>.<parameter>`` for each component parameter (read only: the start-up value)."""
     names = tuple(components)
@@ -75,9 +76,9 @@ class ComponentContainer(ParamotionNode):
     ``PARAMS = component_params(COMPONENTS)``. ``self.components`` holds the started nodes.
     """
 
-    COMPONENTS: dict = {}
+    COMPONENTS: dict[str, type[ParamotionNode]] = {}
 
-    def __init__(self, node_name, **kwargs):
+    def __init__(self, node_name: str, **kwargs: Any) -> None:
         own_args = list(kwargs.get('cli_args') or [])
         global_args = kwargs.get('use_global_arguments', True)
         super().__init__(node_name, **kwargs)
@@ -106,7 +107,7 @@ class ComponentContainer(ParamotionNode):
             self.destroy_node()
             raise
 
-    def destroy_node(self):
+    def destroy_node(self) -> None:
         """Destroy the components (last started first), then the container."""
         while self.components:
             self.components.pop().destroy_node()

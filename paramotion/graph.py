@@ -8,14 +8,19 @@ the new time and by the messages published in response, until nothing is left). 
 nothing waits on the wall clock, a scenario runs as fast as the machine allows and produces the
 same results on a fast or a slow machine.
 """
+from __future__ import annotations
+
 import os
 import random
 import time
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from contextlib import contextmanager
+from typing import TYPE_CHECKING, Any, Literal, TypeVar
 
 import rclpy
 from rclpy.event_handler import EventHandler
 from rclpy.executors import (
+    Executor,
     ExternalShutdownException,
     ShutdownException,
     SingleThreadedExecutor,
@@ -23,10 +28,18 @@ from rclpy.executors import (
 )
 from rclpy.experimental.events_executor import EventsExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+from rclpy.node import Node
 from rclpy.subscription import Subscription
 
 from paramotion.clock import ClockSourceNode
 from paramotion.node import overrides_from_dict
+
+if TYPE_CHECKING:
+    from rosgraph_msgs.msg import Clock as ClockMsg
+
+    from paramotion.bag.recorder_node import BagRecorderNode
+
+NodeT = TypeVar('NodeT', bound=Node)
 
 #: How a Graph drains its callbacks: ``lockstep`` (a ``SingleThreadedExecutor`` whose ready
 #: callbacks the Graph runs itself, in that executor's order, see :class:`LockstepDrain`),
@@ -44,7 +57,7 @@ GRAPH_DEFAULTS = {'executor': DEFAULT_EXECUTOR, 'direct_time': True,
 
 
 @contextmanager
-def graph_defaults(**values):
+def graph_defaults(**values: Any) -> Iterator[None]:
     """Temporarily change :data:`GRAPH_DEFAULTS` (for benchmarks comparing them)."""
     unknown = set(values) - set(GRAPH_DEFAULTS)
     if unknown:
@@ -58,7 +71,7 @@ def graph_defaults(**values):
         GRAPH_DEFAULTS.update(saved)
 
 
-def make_executor(kind, context):
+def make_executor(kind: str, context: rclpy.Context) -> Executor:
     """A new rclpy executor for ``kind`` (one of :data:`EXECUTORS`) on ``context``."""
     if kind == 'events':
         return EventsExecutor(context=context)
@@ -74,7 +87,7 @@ NODE_EXECUTORS = ('events', 'single_threaded', 'waitset')
 DEFAULT_NODE_EXECUTOR = 'single_threaded'
 
 
-def node_executor_kind():
+def node_executor_kind() -> str:
     """The executor :func:`spin_node` uses: ``$PARAMOTION_EXECUTOR`` or the default."""
     kind = os.environ.get(NODE_EXECUTOR_ENV, '').strip() or DEFAULT_NODE_EXECUTOR
     if kind not in NODE_EXECUTORS:
@@ -83,7 +96,8 @@ def node_executor_kind():
     return kind
 
 
-def spin_node(node, kind=None, stop=None):
+def spin_node(node: Node, kind: str | None = None,
+              stop: Callable[[], bool] | None = None) -> None:
     """Spin ``node`` (its own process) until its context shuts down.
 
     A component container (:class:`paramotion.container.ComponentContainer`) is spun together
@@ -115,7 +129,7 @@ def spin_node(node, kind=None, stop=None):
         executor.spin_once(timeout_sec=0.1)
 
 
-def private_domain_id():
+def private_domain_id() -> int:
     """DDS domain for a one-process run: ``ROS_DOMAIN_ID`` if the user set it (to watch the run
     live), else a random one in 102..200."""
     env = os.environ.get('ROS_DOMAIN_ID', '').strip()
@@ -124,7 +138,7 @@ def private_domain_id():
     return random.SystemRandom().randint(102, 200)
 
 
-def _init_context(context, domain_id, private):
+def _init_context(context: rclpy.Context, domain_id: int, private: bool) -> None:
     """``rclpy.init`` of ``context``; ``private`` turns DDS discovery off for it.
 
     All nodes of a Graph share one context (one DDS participant), so they still talk to each
@@ -155,7 +169,8 @@ class Graph:
     :data:`EXECUTORS` (default from :data:`GRAPH_DEFAULTS`).
     """
 
-    def __init__(self, domain_id=None, max_callbacks_per_drain=200_000, executor=None):
+    def __init__(self, domain_id: int | None = None, max_callbacks_per_drain: int = 200_000,
+                 executor: str | None = None) -> None:
         kind = executor or GRAPH_DEFAULTS['executor']
         if kind not in EXECUTORS:
             raise ValueError(f'executor {kind!r}: expected one of {", ".join(EXECUTORS)}')
@@ -178,7 +193,9 @@ class Graph:
         self.direct_time = GRAPH_DEFAULTS['direct_time']
         self.node_services = not (private and GRAPH_DEFAULTS['private_without_services'])
 
-    def add(self, node_cls, *, name=None, namespace=None, remappings=None, **params):
+    def add(self, node_cls: Callable[..., NodeT], *, name: str | None = None,
+            namespace: str | None = None, remappings: Mapping[str, str] | None = None,
+            **params: Any) -> NodeT:
         """Create ``node_cls`` in this graph with parameter overrides ``params``.
 
         ``name`` renames the node, ``namespace`` pushes it into a namespace, ``remappings``
@@ -212,7 +229,8 @@ class Graph:
             self.executor.add_node(each)
         return node
 
-    def record(self, bag_dir, topics, flush_period=1.0):
+    def record(self, bag_dir: str | os.PathLike[str], topics: Iterable[str],
+               flush_period: float = 1.0) -> BagRecorderNode:
         """Add a bag recorder for ``topics`` (names) writing ``bag_dir``; returns the node.
 
         Every topic must already have a publisher in this graph (add the nodes first).
@@ -227,7 +245,7 @@ class Graph:
         self.drain()
         return recorder
 
-    def drain(self):
+    def drain(self) -> int:
         """Run ready callbacks until nothing is left to run; returns how many handlers ran.
 
         Callbacks run by a drain may make others ready (a timer publishes, a subscription
@@ -244,13 +262,13 @@ class Graph:
         self.callbacks_run += count
         return count
 
-    def _check_runaway(self, count):
+    def _check_runaway(self, count: int) -> None:
         if count > self.max_callbacks_per_drain:
             raise RuntimeError(
                 f'executor did not drain after {count} callbacks: a callback keeps '
                 'itself ready (zero-period wall timer or publish loop?)')
 
-    def _drain_events(self):
+    def _drain_events(self) -> int:
         """EventsExecutor: every event is one handler on a FIFO queue and one ``spin_once`` runs
         exactly one of them. A marker task is queued behind the events; the spins until it has
         run are the events ahead of it (and the marker). Events those handlers queued sit
@@ -279,11 +297,11 @@ class Graph:
             self._check_runaway(count)
         return count
 
-    def _timer_due(self):
+    def _timer_due(self) -> bool:
         """True when a timer of one of this graph's nodes is due and has not run yet."""
         return any(timer.is_ready() for node in self.nodes for timer in node.timers)
 
-    def _await_event(self, limit_s=5.0):
+    def _await_event(self, limit_s: float = 5.0) -> None:
         """Run events as they arrive until no timer is due (at most ``limit_s`` s of wall time).
         """
         end = time.monotonic() + limit_s
@@ -292,7 +310,7 @@ class Graph:
                 raise RuntimeError(f'a due timer was not dispatched within {limit_s} s')
             self.executor.spin_once(timeout_sec=0.001)
 
-    def _drain_waitset(self):
+    def _drain_waitset(self) -> int:
         """SingleThreadedExecutor: wait rounds (:func:`rclpy_wait_round`) until one runs
         nothing. A burst of N messages on one subscription therefore takes N rounds, all
         within this call."""
@@ -304,7 +322,11 @@ class Graph:
                 return count
             self._check_runaway(count)
 
-    def run_lockstep(self, clock_source, until=None, max_sim_time=None, on_step=None):
+    def run_lockstep(self, clock_source: ClockSourceNode,
+                     until: Callable[[], bool] | None = None,
+                     max_sim_time: float | None = None,
+                     on_step: Callable[[], object] | None = None,
+                     ) -> Literal['done', 'time_limit']:
         """Advance ``clock_source`` period by period, draining the executor after each.
 
         Stops when ``until()`` is true (checked after every drain) or when the simulated time
@@ -325,7 +347,7 @@ class Graph:
             if on_step is not None:
                 on_step()
 
-    def _set_time_directly(self, clock_source):
+    def _set_time_directly(self, clock_source: ClockSourceNode) -> None:
         """Let ``clock_source`` set the simulated time of this graph's nodes itself.
 
         Each node on sim time normally learns the time from its own ``/clock`` subscription:
@@ -350,12 +372,12 @@ class Graph:
             source._clock_sub = None
             self._direct_time.append(source)
 
-    def _deliver_time(self, msg):
+    def _deliver_time(self, msg: ClockMsg) -> None:
         for source in self._direct_time:
             if source.ros_time_is_active:
                 source.clock_callback(msg)
 
-    def spin_wall(self, seconds, until=None):
+    def spin_wall(self, seconds: float, until: Callable[[], bool] | None = None) -> bool:
         """Spin on wall-clock time (free-running sources, DDS peers) for ``seconds``."""
         end = time.monotonic() + seconds
         while time.monotonic() < end:
@@ -364,7 +386,7 @@ class Graph:
             self.executor.spin_once(timeout_sec=min(0.05, max(0.0, end - time.monotonic())))
         return until() if until is not None else False
 
-    def shutdown(self):
+    def shutdown(self) -> None:
         """Destroy every node (recorders close their bags), the executor and the context."""
         owned = {id(c) for node in self.nodes for c in getattr(node, 'components', ())}
         for node in reversed(self.nodes):
@@ -378,10 +400,10 @@ class Graph:
         self.executor.shutdown()
         rclpy.try_shutdown(context=self.context)
 
-    def __enter__(self):
+    def __enter__(self) -> Graph:
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> None:
         self.shutdown()
 
 
@@ -404,13 +426,14 @@ class LockstepDrain:
     most one period later, and no callback of the graph depends on them.
     """
 
-    def __init__(self, executor, context, qos_events_first_round_only=True):
+    def __init__(self, executor: Executor, context: rclpy.Context,
+                 qos_events_first_round_only: bool = True) -> None:
         self.executor = executor
         self.context = context
         self.qos_events_first_round_only = qos_events_first_round_only
         self._wait_sets = {}
 
-    def drain(self, check_runaway):
+    def drain(self, check_runaway: Callable[[int], None]) -> int:
         """Run rounds until one finds nothing ready; returns how many callbacks ran."""
         count = 0
         first = True
@@ -422,13 +445,13 @@ class LockstepDrain:
                 return count
             check_runaway(count)
 
-    def _fallback_needed(self, nodes):
+    def _fallback_needed(self, nodes: list[Node]) -> bool:
         ex = self.executor
         with ex._tasks_lock:
             pending = any(not t.done() for t, _, _ in ex._tasks)
         return pending or any(True for node in nodes for _ in node.guards)
 
-    def _round(self, qos_events=True, timeout_ns=0):
+    def _round(self, qos_events: bool = True, timeout_ns: int = 0) -> int:
         """One wait (``timeout_ns``: 0 polls, > 0 blocks until something is ready or the time
         is up) and the callbacks it found ready; returns how many ran."""
         ex = self.executor
@@ -475,7 +498,8 @@ class LockstepDrain:
                     ran += self._run_handler(srv, node, ex._take_service)
         return ran
 
-    def spin(self, stop=None, slice_s=0.1, qos_every=10):
+    def spin(self, stop: Callable[[], bool] | None = None, slice_s: float = 0.1,
+             qos_every: int = 10) -> None:
         """Free-running: wait for ready callbacks (at most ``slice_s`` s per wait) and run them
         in the executor's order until ``stop()`` is true or the context shuts down; the QoS
         event handlers are polled every ``qos_every`` waits."""
@@ -485,7 +509,7 @@ class LockstepDrain:
             self._round(qos_events=waits % qos_every == 0, timeout_ns=timeout_ns)
             waits += 1
 
-    def _fill_wait_set(self, per_node):
+    def _fill_wait_set(self, per_node: list[tuple]) -> Any:
         key = tuple(id(e) for entry in per_node for group in entry[1:] for e in group)
         ws = self._wait_sets.get(key)
         if ws is None:
@@ -520,7 +544,7 @@ class LockstepDrain:
                 wt.add_to_wait_set(ws)
         return ws
 
-    def _run_handler(self, entity, node, take):
+    def _run_handler(self, entity: Any, node: Node, take: Callable[..., Any]) -> int:
         """Run one callback through the executor's own handler (as its spin would)."""
         ex = self.executor
         handler = ex._make_handler(entity, node, take)
@@ -531,13 +555,13 @@ class LockstepDrain:
             raise handler.exception()
         return 1
 
-    def _rclpy_round(self):
+    def _rclpy_round(self) -> int:
         """One round of the executor's own wait (pending coroutine tasks or guard conditions,
         which the direct round does not handle)."""
         return rclpy_wait_round(self.executor)
 
 
-def rclpy_wait_round(executor):
+def rclpy_wait_round(executor: Executor) -> int:
     """Run the callbacks of one zero-timeout ``wait_for_ready_callbacks`` round; returns how
     many ran (0 also after a shutdown).
 

@@ -12,11 +12,14 @@ Ctrl-C, on ``ros2 lifecycle``-less external shutdown and on a bad parameter. It 
 a traceback however many SIGINT/SIGTERM arrive (a terminal Ctrl-C under ``ros2 launch`` sends
 two): see :mod:`paramotion.shutdown`.
 """
+from __future__ import annotations
+
 import math
 import sys
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from types import SimpleNamespace
-from typing import Any, Optional
+from typing import Any, NoReturn, Optional
 
 import rclpy
 from rcl_interfaces.msg import (
@@ -56,11 +59,11 @@ class Param:
     read_only: bool = False
 
     @property
-    def ptype(self):
+    def ptype(self) -> Parameter.Type:
         """The rclpy ``Parameter.Type`` matching the default value."""
         return Parameter.Type.from_parameter_value(self.default)
 
-    def allowed(self):
+    def allowed(self) -> str:
         """Human-readable allowed set, used in refusal messages."""
         if self.choices is not None:
             return 'one of ' + ', '.join(repr(c) for c in self.choices)
@@ -70,7 +73,7 @@ class Param:
             return f'any {self.ptype.name.lower()}'
         return f'{self.ptype.name.lower()} in [{lo}, {hi}]'
 
-    def descriptor(self):
+    def descriptor(self) -> ParameterDescriptor:
         """Build the ParameterDescriptor advertised to tools (ros2 param describe)."""
         desc = ParameterDescriptor(
             name=self.name, type=self.ptype.value, description=self.description,
@@ -90,7 +93,7 @@ class Param:
                 to_value=_INT_LIMIT if self.max is None else int(self.max), step=1)]
         return desc
 
-    def check(self, value):
+    def check(self, value: Any) -> str | None:
         """Return None if ``value`` is acceptable, else a one-line reason naming the parameter."""
         expected = self.ptype
         if expected == Parameter.Type.DOUBLE and isinstance(value, int) \
@@ -118,7 +121,7 @@ class Param:
         return None
 
 
-def _coerce(param, value):
+def _coerce(param: Param, value: Any) -> Any:
     """Accept an int where a double is declared (``-p x:=1`` on the command line)."""
     if param.ptype == Parameter.Type.DOUBLE and isinstance(value, int) \
             and not isinstance(value, bool):
@@ -135,10 +138,10 @@ class ParamotionNode(Node):
     ``use_sim_time`` defaults to true (the simulator owns ``/clock``) unless it is overridden.
     """
 
-    PARAMS: tuple = ()
+    PARAMS: tuple[Param, ...] = ()
     USE_SIM_TIME_DEFAULT = True
 
-    def __init__(self, node_name, **kwargs):
+    def __init__(self, node_name: str, **kwargs: Any) -> None:
         overrides = list(kwargs.pop('parameter_overrides', None) or [])
         overrides = [_coerce_override(self.PARAMS, p) for p in overrides]
         super().__init__(node_name, parameter_overrides=overrides, **kwargs)
@@ -179,14 +182,14 @@ class ParamotionNode(Node):
         self.params = SimpleNamespace(**values)
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
-    def check_params(self, values):
+    def check_params(self, values: dict[str, Any]) -> str | None:
         """Cross-parameter rules: return a one-line reason if ``values`` are inconsistent."""
         return None
 
-    def on_params_changed(self, changed):
+    def on_params_changed(self, changed: dict[str, Any]) -> None:
         """Hook called after accepted parameter changes (``changed``: dict name -> value)."""
 
-    def _on_set_parameters(self, params):
+    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
         candidate = vars(self.params).copy()
         changed = {}
         for p in params:
@@ -210,7 +213,7 @@ class ParamotionNode(Node):
         return SetParametersResult(successful=True)
 
 
-def _coerce_override(specs, param):
+def _coerce_override(specs: Sequence[Param], param: Parameter) -> Parameter:
     """Give a double parameter override passed as an int the double type it is declared with."""
     for spec in specs:
         if spec.name == param.name and param.type_ == Parameter.Type.INTEGER \
@@ -219,12 +222,12 @@ def _coerce_override(specs, param):
     return param
 
 
-def overrides_from_dict(values):
+def overrides_from_dict(values: Mapping[str, Any]) -> list[Parameter]:
     """Turn ``{'name': value}`` into a list of rclpy ``Parameter`` overrides."""
     return [Parameter(name, value=value) for name, value in values.items()]
 
 
-def run_node(node_cls, args=None):
+def run_node(node_cls: Callable[[], Node], args: Sequence[str] | None = None) -> NoReturn:
     """Standard Jazzy ``main()`` body: init, spin, clean shutdown; one-line parameter errors.
 
     The first SIGINT or SIGTERM stops the node; later ones (a terminal Ctrl-C under launch
@@ -239,7 +242,8 @@ def run_node(node_cls, args=None):
     exit_now(0)
 
 
-def _run_node(node_cls, args, signals):
+def _run_node(node_cls: Callable[[], Node], args: Sequence[str] | None,
+              signals: ShutdownSignals) -> None:
     node = watchdog = waker = None
     try:
         from paramotion.graph import node_executor_kind, spin_node  # $PARAMOTION_EXECUTOR

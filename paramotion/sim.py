@@ -5,17 +5,24 @@ simulations can live in one process. Every publish period it runs
 ``round(publish_period / physics_dt)`` physics steps of ``physics_dt`` (:meth:`step_physics`),
 then publishes ``/clock`` and its state (:meth:`publish_state`).
 """
+from __future__ import annotations
+
 import ctypes
 import os
 import sys
+from collections.abc import Iterator
 from contextlib import contextmanager
+from typing import TYPE_CHECKING, Any
 
 from paramotion.clock import NS, ClockSourceNode
 from paramotion.node import Param
 
+if TYPE_CHECKING:
+    from pybullet_utils.bullet_client import BulletClient
+
 
 @contextmanager
-def quiet_stdout():
+def quiet_stdout() -> Iterator[None]:
     """Silence C-level stdout (PyBullet prints its build time and argv[0] on start-up), which
     would otherwise mix into scenario summaries and ``ros2 run`` output."""
     sys.stdout.flush()
@@ -31,7 +38,7 @@ def quiet_stdout():
         os.close(devnull)
 
 
-def bullet_client():
+def bullet_client() -> BulletClient:
     """A new headless (DIRECT) PyBullet client, without the start-up banner."""
     with quiet_stdout():
         import pybullet
@@ -49,14 +56,15 @@ class SimulationNode(ClockSourceNode):
               min=-20.0, max=0.0, read_only=True),
     )
 
-    def __init__(self, node_name, **kwargs):
+    def __init__(self, node_name: str, **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
         self.bullet = bullet_client()
         self.bullet.setGravity(0.0, 0.0, self.params.gravity)
         self.bullet.setTimeStep(self.params.physics_dt)
         self.substeps = max(1, int(round(self.params.publish_period / self.params.physics_dt)))
 
-    def check_params(self, values):
+    def check_params(self, values: dict[str, Any]) -> str | None:
+        """The clock rules, and ``publish_period`` a whole number of physics steps."""
         reason = super().check_params(values)
         if reason:
             return reason
@@ -66,16 +74,18 @@ class SimulationNode(ClockSourceNode):
                     f"multiple of 'physics_dt' = {values['physics_dt']}")
         return None
 
-    def advance_time(self, period_ns):
+    def advance_time(self, period_ns: int) -> None:
+        """Run the period as ``substeps`` physics steps of ``physics_dt``."""
         dt = self.params.physics_dt
         for _ in range(self.substeps):
             self.step_physics(dt)
 
-    def step_physics(self, dt):
+    def step_physics(self, dt: float) -> None:
         """Subclass hook: apply commands/forces, then ``self.bullet.stepSimulation()``."""
         self.bullet.stepSimulation()
 
-    def destroy_node(self):
+    def destroy_node(self) -> None:
+        """Disconnect the PyBullet client, then destroy the node."""
         try:
             self.bullet.disconnect()
         except Exception:  # already disconnected (e.g. destroyed twice)

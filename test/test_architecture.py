@@ -193,18 +193,10 @@ def _untyped_public_functions(path):
     return out
 
 
-#: Modules of the shared layer (``paramotion/``) not typed yet; they leave the list as their
-#: owners type them.
-SHARED_NOT_YET_TYPED = ('bench.py', 'clock.py', 'container.py', 'graph.py', 'node.py', 'sim.py')
-
-
 def test_public_functions_of_the_shared_layer_are_typed():
     """Issue 33: in ``paramotion/`` every public function and method is annotated, nodes,
-    command line, launch and bag tools included (not only algorithm modules), except the
-    modules of :data:`SHARED_NOT_YET_TYPED`."""
-    root = REPO / 'paramotion'
-    paths = [p for p in sorted(root.rglob('*.py'))
-             if p.relative_to(root).as_posix() not in SHARED_NOT_YET_TYPED]
+    command line, launch and bag tools included (not only algorithm modules)."""
+    paths = sorted((REPO / 'paramotion').rglob('*.py'))
     assert len(paths) >= 30
     offenders = [entry for path in paths for entry in _untyped_public_functions(path)]
     assert offenders == [], (f'{len(offenders)} untyped public functions in paramotion/:\n'
