@@ -26,3 +26,13 @@ def test_sweep_runs_the_paper_planner_when_asked(tmp_path, capsys):
         main(['coverage', 'sweep', '--worlds', str(worlds), '--planner', 'cells', '--serial',
               '--out', str(tmp_path / 'bad')])
     assert "--planner: invalid choice: 'cells'" in capsys.readouterr().err
+
+
+def test_paper_measure_reads_seed_ranges_and_measures_a_world():
+    """``python -m coverage_pkg.paper_measure --seeds ...``: seed lists and ranges; one world's
+    row carries issue 28's figures."""
+    from coverage_pkg.paper_measure import measure_world, parse_seeds
+    assert parse_seeds('100-102,300') == [100, 101, 102, 300]
+    row = measure_world(100, max_time=20.0)
+    assert row['world'] == 'gen_mixed_100' and 0.0 < row['covered'] < 1.0
+    assert 0.0 <= row['primitive'] <= 1.0 and 0.0 < row['median_ms'] <= row['p99_ms']
