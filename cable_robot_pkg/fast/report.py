@@ -72,16 +72,16 @@ LONG_RUN = (23, 300.0, 0.035, 60.0)     # the issue's case: seed 23 at 300 deg, 
 
 def _cases(quick: bool) -> list:
     """The runs of the report. The least-squares predictor of ``predictive`` fits once it has
-    4 s of base history (the Kalman predictor serves until then), so its runs last longer and
-    their statistics start at 5 s; ``quick`` runs are shorter than that warm-up."""
+    4 s of base history (the Kalman predictor serves until then), so every run that compares
+    modes lasts 12 s with statistics from 5 s (the same window for every mode); ``quick`` runs
+    are shorter than that warm-up."""
     cases = []
 
     def add(key, mode, duration=None, settle=None, **kw):
-        long_run = mode == 'predictive'
         if duration is None:
-            duration = 3.0 if quick else (12.0 if long_run else 6.0)
+            duration = 3.0 if quick else 12.0
         if settle is None:
-            settle = 1.0 if quick else (5.0 if long_run else 2.0)
+            settle = 1.0 if quick else 5.0
         cases.append({'key': key, 'duration': duration, 'settle': settle, 'mode': mode, **kw})
 
     labels = ('lu', 'cheng', 'predictive') if quick else \
@@ -348,9 +348,9 @@ def write_report(out_dir: Path, quick: bool = False) -> list:
         f"{wall / 60:.1f} min{' (quick: short runs, few cases)' if quick else ''}.",
         f'Python {sys.version.split()[0]}. All runs: ROS-free lock-step loop '
         '(`cable_robot_pkg.fast.loop.run_loop`), wind intensity 1.0, tracker noise 1 mm / '
-        '0.01 deg at 200 Hz. Runs of `predictive` (whose least-squares predictor fits after '
-        '4 s of base history) last 12 s with statistics from 5 s, other runs 6 s from 2 s, '
-        'unless a section says otherwise. Cells: feed RMS position (mm) / '
+        '0.01 deg at 200 Hz. Runs last 12 s with statistics from 5 s (the least-squares '
+        'predictor of `predictive` fits after 4 s of base history) unless a section says '
+        'otherwise. Cells: feed RMS position (mm) / '
         'orientation (deg); "unstable" = legs driven into their stroke ends or the feed '
         'diverged; "(u)" = error growing or feed moving more than twice the trolley.', '',
         '## Modes and ablations (20 ms latency, packaged wind)', '', *_mode_table(res), '',
