@@ -55,6 +55,7 @@ def test_traced_paths_join_samples_only_inside_the_disk_the_ring_saw_free():
     assert route[0] == (0.0, 0.0) and route[-1] == pytest.approx((2.88, 0.0))
 
 
+@pytest.mark.slow
 def test_rooms_and_corridor_are_covered_by_sensed_events_alone():
     """The start is vast (D > delta): its boundary circuit senses the room's corner cusps and
     the corridor's; every other node was created by one of those cusp events, and each edge

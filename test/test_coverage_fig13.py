@@ -84,6 +84,7 @@ def _cells(p, node):
     return out
 
 
+@pytest.mark.slow
 def test_two_rooms_and_a_corridor_make_the_hand_computed_graph():
     """The start (D = 1 m) is the corner's narrow node; its GVD edge ends at the cusp (2, 2),
     which creates the left room's vast node; that room's boundary circuit senses, in the
@@ -105,6 +106,7 @@ def test_two_rooms_and_a_corridor_make_the_hand_computed_graph():
         assert closed[0] == 'death' and abs(closed[1][0] - wall) < TOL
 
 
+@pytest.mark.slow
 def test_t_hall_graph_from_the_stem_to_the_crossbar():
     """The stem (3 m wide, D <= 1.5 m) is the start's narrow node; its foot's corners meet at
     the meet point (10, 1.5); its GVD edge ends at the cusp 1.32 m into the crossbar (D = 2 m

@@ -78,6 +78,7 @@ def test_oracle_drives_a_dead_end_corridor_exactly_as_far_as_its_end_needs():
         assert walls.distance(shapely.Point(x, y)) >= 0.25
 
 
+@pytest.mark.slow
 def test_oracle_route_sees_the_target_share_of_cvs_in_a_room_with_an_obstacle():
     world = world_from_dict({'name': 'room', 'boundary': [[0, 0], [8, 0], [8, 6], [0, 6]],
                              'obstacles': [[[3, 2], [5, 2], [5, 4], [3, 4]]],

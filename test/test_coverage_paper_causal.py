@@ -54,6 +54,7 @@ def test_suppressing_the_corridor_cusp_leaves_the_node_behind_it_uncreated():
     assert cut['covered_fraction'] < 0.55
 
 
+@pytest.mark.slow
 def test_an_injected_cusp_creates_a_node_and_an_edge_and_the_robot_goes_there():
     target = (8.0, 4.0)
     plain = _run(ROOM)

@@ -10,6 +10,7 @@ from paramotion.cli import main
 WORLDS = Path(__file__).resolve().parents[1] / 'coverage_pkg' / 'worlds'
 
 
+@pytest.mark.slow
 def test_sweep_runs_the_paper_planner_when_asked(tmp_path, capsys):
     worlds = tmp_path / 'worlds'
     worlds.mkdir()

@@ -35,6 +35,7 @@ def kinematic_run(cfg, mode, latency, duration=6.0, without=(), **attrs):
     return kinematic_isolation_run(cfg, mode, latency, duration, 2.0, without=without, **attrs)
 
 
+@pytest.mark.slow
 def test_lu_delay_instability_appears_beyond_the_documented_latency(cfg):
     """Lu et al.'s delay-induced instability: the PID on direct terminal feedback holds up
     to the documented latency and drives the legs into their stroke ends beyond it; the cure
@@ -47,6 +48,7 @@ def test_lu_delay_instability_appears_beyond_the_documented_latency(cfg):
     assert clips == 0 and rms < 0.03
 
 
+@pytest.mark.slow
 def test_prediction_is_load_bearing_in_cheng_mode(cfg):
     """Cheng et al.'s base-position prediction: without it the legs follow the delayed base
     and the feed error grows several-fold at 40 ms."""

@@ -264,6 +264,7 @@ def _kinematic_isolation_run(cfg, mode, latency, duration=8.0):
                                    stop_on_divergence=True)[0]
 
 
+@pytest.mark.slow
 def test_isolation_controller_on_kinematic_plant(cfg):
     on = _kinematic_isolation_run(cfg, 'predictive', 0.02)
     assert on < 0.002                                      # ~40 mm base motion -> < 2 mm
@@ -351,6 +352,7 @@ def _coupled_isolation_run(cfg, latency, peak_gain_max, duration=5.0, predictor=
     return math.sqrt(np.mean(np.square(errs)))
 
 
+@pytest.mark.slow
 def test_latency_schedule_keeps_coupled_isolator_stable(cfg):
     """At 80 ms, predicting the *measured* base (without the reaction model), the unscheduled
     Kalman predictor (no bound on its gain) destabilises the coupled platforms and its
