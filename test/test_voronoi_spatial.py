@@ -2,7 +2,8 @@
 containment against slab / separating-axis tests, leg-leg contacts against closest-point
 geometry, leg-length limits, the retraction onto the simplified Voronoi diagram (two tied
 contacts, rho higher) and the diagram roadmap on detour and walled-off scenes, every path
-checked by those independent methods at a finer resolution than the planner's."""
+checked by those independent methods at a finer resolution than the planner's; the ablations
+(``without``): each construct switched off, the path found crosses what it forbade."""
 import json
 import math
 
@@ -411,3 +412,79 @@ def test_unseen_random_scene_queries_are_verified():
         else:
             assert 'Halton samples' in res.reason
     assert found >= 1
+
+
+# -- ablations (--without NAME): the constructs are load-bearing ------------------------------
+
+#: A free pose of the demo scene on the other side of the singularity [p4 p7 p8 p9] = 0 from
+#: DEMO_START (P4 crosses the platform's plane); found by sampling the demo bounds.
+ACROSS_SINGULARITY = (-0.154, -0.143, 0.518, math.radians(-25.21), math.radians(19.77),
+                      math.radians(-14.44))
+
+
+def _wall(without=()):
+    w = _window_model(False)
+    return Spatial321Model(w.base, w.platform, w.boxes, w.position_min, w.position_max,
+                           w.angle_max, w.leg_limits, without=without)
+
+
+def test_without_singularity_the_path_crosses_a_singular_configuration():
+    """Start and goal in different cells of [p4 p7 p8 p9]: the full planner answers no path by
+    the certificate; without the singularity factors it returns a path along which the leg
+    Plucker determinant (independent of the factorisation) changes sign."""
+    res = DiagramRoadmapPlanner(demo_model(), n_samples=100).plan(DEMO_START,
+                                                                  ACROSS_SINGULARITY)
+    assert res.status == 'no_path' and '[p4 p7 p8 p9] changes sign' in res.reason
+    ablated = demo_model(without=['singularity'])
+    assert not ablated.singular_keys and len(ablated.contacts) == len(demo_model().contacts) - 3
+    res = DiagramRoadmapPlanner(ablated, n_samples=100).plan(DEMO_START, ACROSS_SINGULARITY)
+    assert res.found, res.reason
+    dense, _ = densify6(res.path, FINE_STEP, FINE_DANGLE)
+    sign = np.sign(pluecker_det(demo_model().points(dense)))
+    assert np.any(sign != sign[0])
+    assert not check_path6(demo_model(), res.path)[0]
+
+
+def test_without_collision_the_path_goes_through_the_wall():
+    """A wall across the bounds between start and goal (same singularity cell): with the
+    robot-obstacle contacts the diagram search answers no path; without them the planner
+    returns a path that direct geometry (slab and separating-axis tests) finds in the wall."""
+    res = DiagramRoadmapPlanner(_wall(), n_samples=100).plan(WALL_START, WALL_GOAL)
+    assert res.status == 'no_path' and 'different connected components' in res.reason
+    res = DiagramRoadmapPlanner(_wall(['collision']), n_samples=100).plan(WALL_START,
+                                                                         WALL_GOAL)
+    assert res.found, res.reason
+    dense, _ = densify6(res.path, FINE_STEP, FINE_DANGLE)
+    assert not independent_free(_wall(), dense).all()
+    # Only the obstacle contacts are gone: the path still avoids singularities.
+    sign = np.sign(pluecker_det(_wall().points(dense)))
+    assert np.all(sign == sign[0])
+
+
+@pytest.mark.parametrize('without, words', [
+    (['bogus'], "unknown construct 'bogus'"),
+    (['singularity', 'collision'], 'no predicate'),
+])
+def test_bad_spatial_ablations_are_refused(without, words):
+    with pytest.raises(UserError, match=words):
+        demo_model(without=without)
+
+
+def test_cli_plan321_bad_without_gives_one_line(tmp_path, capsys):
+    code = cli_main(['voronoi', 'plan321', '--without', 'walls', '--out',
+                     str(tmp_path / 'never')])
+    assert code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and 'walls' in err[0]
+    assert not (tmp_path / 'never').exists()
+
+
+def test_cli_plan321_without_is_recorded(tmp_path):
+    out = tmp_path / 'o'
+    goal = [str(v) for v in ACROSS_SINGULARITY[:3]] + [
+        str(math.degrees(v)) for v in ACROSS_SINGULARITY[3:]]
+    code = cli_main(['voronoi', 'plan321', '--goal', *goal, '--samples', '30',
+                     '--without', 'singularity', '--out', str(out)])
+    assert code == 0
+    doc = json.loads((out / 'result.json').read_text())
+    assert doc['without'] == ['singularity'] and doc['status'] == 'ok'

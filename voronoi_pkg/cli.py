@@ -38,9 +38,7 @@ def register(subparsers):
     p.add_argument('--grid', type=float, default=1.0, help='grid spacing in x, y (units)')
     p.add_argument('--slice-deg', type=float, default=2.5, help='orientation slice spacing')
     p.add_argument('--no-figures', action='store_true', help='write result.json only')
-    p.add_argument('--without', action='append', default=[], metavar='NAME',
-                   help='switch a construct of the paper off (ablation; repeatable): '
-                        'singularity (the factors of P1), collision (the predicates of P2)')
+    _add_without(p, 'singularity (the factors of P1), collision (the predicates of P2)')
     p.set_defaults(func=_plan)
 
     p = sub.add_parser('plan321', help='plan for the spatial 3-2-1 platform of Fig. 1',
@@ -71,6 +69,8 @@ def register(subparsers):
     p.add_argument('--no-leg-limits', action='store_true', help='legs of any length')
     p.add_argument('--repeats', type=int, default=1,
                    help='plan this many times and print the median planning time')
+    _add_without(p, 'singularity (the three pure-condition factors), collision (the '
+                 'robot-obstacle contacts: segment-face, box edge-platform, containment)')
     p.add_argument('--out', required=True, help='output directory')
     p.set_defaults(func=_plan321)
 
@@ -79,6 +79,13 @@ def register(subparsers):
     p.add_argument('--configs', type=int, default=1_000_000,
                    help='configurations per rho evaluation batch')
     p.set_defaults(func=_bench)
+
+
+def _add_without(parser, constructs):
+    """The repeatable ``--without NAME`` ablation option (names: planar.CONSTRUCTS)."""
+    parser.add_argument('--without', action='append', default=[], metavar='NAME',
+                        help='switch a construct of the paper off (ablation; repeatable): '
+                             + constructs)
 
 
 def _check_out(out):
@@ -220,13 +227,14 @@ def _plan321(args):
             raise UserError(f'--leg-min {args.leg_min} --leg-max {args.leg_max}: need '
                             '0 <= min < max (m)')
     if args.scene:
-        model = load_scene(args.scene, leg_limits=limits)
+        model = load_scene(args.scene, leg_limits=limits, without=args.without)
         if args.no_leg_limits:
             model = Spatial321Model(model.base, model.platform, model.boxes,
-                                    model.position_min, model.position_max, model.angle_max)
+                                    model.position_min, model.position_max, model.angle_max,
+                                    without=model.without)
     else:
         model = demo_model(leg_limits=None if args.no_leg_limits
-                           else (limits or DEMO_LEG_LIMITS))
+                           else (limits or DEMO_LEG_LIMITS), without=args.without)
     start = _pose_arg(args.start, DEMO_START)
     goal = _pose_arg(args.goal, DEMO_GOAL)
     validate_pose(model, start, 'start')
@@ -264,6 +272,7 @@ def _plan321(args):
         'pose_note': '[x, y, z] of P7 in m, [roll, pitch, yaw] ZYX in rad',
         'leg_length_limits_m': None if model.leg_limits is None else list(model.leg_limits),
         'straight_line_free': bool(straight_ok),
+        'without': list(model.without),
         'min_rho': None if math.isnan(res.min_rho) else res.min_rho,
         'planning_time_s': res.planning_time,
         'resolution': {

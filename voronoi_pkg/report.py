@@ -9,7 +9,8 @@
    wall and CPU time, size of the searched graph, on-diagram share measured from rho
    (:mod:`voronoi_pkg.measures`).
 3. "No path" answers and which component gives them.
-4. Ablations: each construct switched off, checked against the full model.
+4. Ablations: each construct switched off (planar and 3-2-1), checked against the full
+   model.
 5. rho evaluation rate.
 """
 import datetime
@@ -123,6 +124,52 @@ def _ablations():
                        f'{min_rho + 0.0:.3g}' + (', crosses a singularity' if crossed else ''))
         out.append(f"| {name} | {query} | {a.status} ({a.stats.get('decided_by', '')}) | "
                    f"{b.status} | {verdict} |")
+    return out + _spatial_ablations()
+
+
+#: A free demo pose across the singularity [p4 p7 p8 p9] = 0 from the demo start (as in
+#: ``test/test_voronoi_spatial.py``).
+ACROSS_SINGULARITY = (-0.154, -0.143, 0.518, math.radians(-25.21), math.radians(19.77),
+                      math.radians(-14.44))
+
+
+def _spatial_wall(without=()):
+    """The walled-off 3-2-1 scene of ``test/test_voronoi_spatial.py``: a wall across x = 0,
+    P7 held at z in [0.6, 0.7]."""
+    from voronoi_pkg.spatial321 import DEMO_BASE, Spatial321Model
+
+    plat = {7: (0.0, 0.0, 0.0), 8: (-0.2, 0.12, 0.0), 9: (-0.2, -0.12, 0.0)}
+    wall = ({'center': (0.0, 0.05, 0.95), 'size': (0.06, 1.6, 0.8)},)
+    return Spatial321Model(DEMO_BASE, plat, wall, (-0.25, -0.3, 0.6), (0.4, 0.4, 0.7),
+                           math.radians(20), (0.3, 1.6), without=tuple(without))
+
+
+def _spatial_ablations():
+    """The 3-2-1 roadmap (100 Halton samples) with each construct switched off."""
+    from voronoi_pkg.spatial321 import DEMO_START, check_path6, demo_model, densify6
+    from voronoi_pkg.spatial321_roadmap import DiagramRoadmapPlanner
+
+    wall_start, wall_goal = (-0.2, 0.3, 0.65, 0.0, 0.0, 0.0), (0.3, 0.3, 0.65, 0.0, 0.0, 0.0)
+    cases = [('singularity (3-2-1)', 'demo start to a pose across [p4 p7 p8 p9] = 0',
+              demo_model, DEMO_START, ACROSS_SINGULARITY),
+             ('collision (3-2-1)', 'across a wall spanning the bounds', _spatial_wall,
+              wall_start, wall_goal)]
+    out = []
+    for name, query, make, start, goal in cases:
+        full = make()
+        a = DiagramRoadmapPlanner(full, n_samples=100).plan(start, goal)
+        b = DiagramRoadmapPlanner(make(without=[name.split()[0]]), n_samples=100).plan(start,
+                                                                                      goal)
+        decided = ('singularity certificate' if 'singularity cells' in a.reason
+                   else 'diagram search' if a.reason else '')
+        verdict = '—'
+        if b.found:
+            ok, min_rho, _ = check_path6(full, b.path)
+            signs = full.singular_signs(densify6(b.path, 0.005, 0.01)[0])
+            crossed = bool(np.any(signs != signs[:, :1]))
+            verdict = ('free' if ok else f'not free under the full model: min rho '
+                       f'{min_rho + 0.0:.3g}' + (', crosses a singularity' if crossed else ''))
+        out.append(f'| {name} | {query} | {a.status} ({decided}) | {b.status} | {verdict} |')
     return out
 
 
@@ -252,7 +299,8 @@ def write_report(out_dir: Path, quick: bool = False) -> list:
         f"singularity cell | {nopath.status} | {nopath.stats.get('decided_by')} "
         f"({nopath.stats.get('slices')} slices, {nopath.stats.get('diagram_nodes')} diagram "
         f"nodes) | {np_wall:.2f} |", '',
-        '## Ablations (`--without NAME`; 1.5-unit grid, 5° slices)', '',
+        '## Ablations (`--without NAME`; planar: 1.5-unit grid, 5° slices; 3-2-1: 100 '
+        'Halton samples)', '',
         '| switched off | query | with it | without it | the path found without it |',
         '| --- | --- | --- | --- | --- |', *ablation, '',
         '## 3-2-1 platform (demo scene, straight line blocked by the box)', '',

@@ -44,6 +44,7 @@ from numpy.typing import ArrayLike
 from paramotion.errors import UserError
 from paramotion.jsonfile import load_json_object
 from voronoi_pkg.distance import RhoProgram, compile_rho
+from voronoi_pkg.planar import check_without
 from voronoi_pkg.predicates import (
     And,
     Delta,
@@ -78,6 +79,10 @@ DEMO_LEG_LIMITS = (0.35, 1.55)
 ANGLE_SCALE = 0.5
 _DERIVED = 1000        # first label of the derived points of the leg-leg contacts
 _CHUNK = 1 << 12
+#: Contact kind -> the construct of the paper (:data:`voronoi_pkg.planar.CONSTRUCTS`) that
+#: ``without`` switches off. Leg-leg contacts (self-collision) stay: no obstacle decides them.
+_CONSTRUCT_OF = {'singularity': 'singularity', 'collision': 'collision',
+                 'containment': 'collision'}
 _SMALL = 256     # below this batch size the flat evaluator is faster
 
 
@@ -244,7 +249,9 @@ class Contact:
 class Spatial321Model:
     """3-2-1 platform, obstacle boxes, leg-length limits and the fused predicate.
 
-    ``leg_limits`` is ``(min, max)`` leg length in m, or None for no limit.
+    ``leg_limits`` is ``(min, max)`` leg length in m, or None for no limit. ``without``:
+    constructs of the paper switched off (ablation, names of
+    :data:`voronoi_pkg.planar.CONSTRUCTS`): their contacts are left out of rho.
     """
 
     base: dict
@@ -256,8 +263,13 @@ class Spatial321Model:
     leg_limits: tuple = None
     angle_scale: float = ANGLE_SCALE
     contacts: list = field(default_factory=list)
+    without: tuple = ()
 
     def __post_init__(self):
+        # Ablations, checked by the planar planner's rule: 'singularity' leaves out the three
+        # pure-condition factors (rho, certificate and the sign-change check), 'collision' the
+        # robot-obstacle contacts (segment-face, box edge-platform, containment).
+        self.without = check_without(self.without)
         self.fixed = {k: np.asarray(v, dtype=float) for k, v in self.base.items()}
         self.moving = {k: np.asarray(v, dtype=float) for k, v in self.platform.items()}
         if self.leg_limits is not None:
@@ -311,6 +323,7 @@ class Spatial321Model:
             contacts.append(Contact(f'leg-leg: P{a}P{b} passes through P{c}P{d}', 'leg-leg',
                                     free))
             self.cross_programs.append(compile_rho(cross))
+        contacts = [c for c in contacts if _CONSTRUCT_OF.get(c.kind) not in self.without]
         self.contacts = contacts
         self.tree = fuse(*[c.tree for c in contacts])
         self.program = compile_rho(self.tree)
@@ -325,7 +338,8 @@ class Spatial321Model:
         self._pair_idx = np.array([[where[k] for k in s + t] for s, t in self.segment_pairs])
         self.flat = FlatContacts(self.program, self.labels)
         self.contact_programs = [compile_rho(c.tree) for c in contacts]
-        self.singular_keys = [tuple(sorted(f)) for f in PURE_CONDITION]
+        self.singular_keys = ([] if 'singularity' in self.without
+                              else [tuple(sorted(f)) for f in PURE_CONDITION])
         self.coplanar_keys = [tuple(sorted(s + t)) for s, t in self.segment_pairs]
         self.extra_names = self._extra_names()
         span = float(np.linalg.norm(np.subtract(self.position_max, self.position_min)))
@@ -450,6 +464,9 @@ class Spatial321Model:
         return [c.name for c in self.contacts] + list(self.extra_names)
 
     def singular_signs(self, q: ArrayLike) -> np.ndarray:
+        """Signs of the pure-condition determinants, ``(n_singular, ...)`` of -1/0/+1."""
+        if not self.singular_keys:                  # singularities switched off
+            return np.zeros((0,) + np.shape(q)[:-1])
         return np.sign(evaluate_determinants(self.singular_keys, self.points(q)))
 
     def thin_state(self, q: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
@@ -509,19 +526,22 @@ class Spatial321Model:
 
 
 def demo_model(boxes: Iterable[Mapping[str, Sequence[float]]] = DEMO_BOXES,
-               leg_limits: tuple[float, float] | None = DEMO_LEG_LIMITS) -> Spatial321Model:
+               leg_limits: tuple[float, float] | None = DEMO_LEG_LIMITS,
+               without: Iterable[str] | None = ()) -> Spatial321Model:
+    """The demo scene; ``without``: constructs switched off (ablation)."""
     return Spatial321Model(DEMO_BASE, DEMO_PLATFORM, tuple(boxes), DEMO_BOUNDS['position_min'],
                            DEMO_BOUNDS['position_max'], math.radians(DEMO_BOUNDS['angle_max_deg']),
-                           leg_limits)
+                           leg_limits, without=tuple(without or ()))
 
 
-def load_scene(path: str | Path,
-               leg_limits: tuple[float, float] | None = None) -> Spatial321Model:
+def load_scene(path: str | Path, leg_limits: tuple[float, float] | None = None,
+               without: Iterable[str] | None = ()) -> Spatial321Model:
     """Spatial scene JSON: ``boxes`` [{"center": [x, y, z], "size": [sx, sy, sz]}, ...],
     optional ``base`` {"1": [x, y, z], ... "6": ...}, ``platform`` {"7": ..., "8": ...,
     "9": ...} (platform frame, P7 at the origin), ``bounds`` {"position_min", "position_max",
     "angle_max_deg"}, ``leg_length`` {"min": m, "max": m} or null (no limits); missing keys
-    take the demo values. ``leg_limits`` (min, max) overrides the file."""
+    take the demo values. ``leg_limits`` (min, max) overrides the file; ``without``: constructs
+    switched off (ablation)."""
     path = Path(path)
     data = load_json_object(path, 'scene file')
 
@@ -567,7 +587,7 @@ def load_scene(path: str | Path,
             leg_limits = (legs['min'], legs['max'])
     try:
         return Spatial321Model(base, plat, tuple(boxes), pmin, pmax, math.radians(amax),
-                               leg_limits)
+                               leg_limits, without=tuple(without or ()))
     except UserError as err:
         raise UserError(f'scene file {path}: {err}') from None
 

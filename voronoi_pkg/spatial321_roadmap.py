@@ -50,7 +50,6 @@ from numpy.typing import ArrayLike
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 from scipy.spatial import cKDTree
-from scipy.stats import qmc
 
 from paramotion.errors import UserError
 from voronoi_pkg.predicates import bracket4
@@ -283,6 +282,8 @@ class DiagramRoadmapPlanner:
     # -- samples -------------------------------------------------------------------------------
     def samples(self) -> np.ndarray:
         """Scrambled Halton poses in the bounds (deterministic for a seed)."""
+        from scipy.stats import qmc  # 0.8 s to import: only when sampling
+
         m = self.model
         u = qmc.Halton(d=6, scramble=True, seed=self.seed).random(self.n_samples)
         return m.lower() + u * (m.upper() - m.lower())
