@@ -180,8 +180,10 @@ def write_report(out_dir: Path, quick: bool = False) -> list[Path]:
         pngs.append(png)
     elapsed = time.perf_counter() - start
 
+    shown = os.path.relpath(out_dir) if out_dir.resolve().is_relative_to(Path.cwd()) \
+        else str(out_dir)
     cmd = ('python -c "from pathlib import Path; from coverage_pkg.report import write_report; '
-           f'write_report(Path(\'{out_dir}\'), quick={quick})"')
+           f'write_report(Path(\'{shown}\'), quick={quick})"')
     lines = ['# Coverage with an extended-range detector: measured results', '',
              f'- date: {time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())}',
              f'- machine: {platform.node()}, {platform.processor() or "unknown CPU"}, '
