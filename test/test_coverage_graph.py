@@ -58,6 +58,7 @@ def _run_with_silence(tmp_path, world, **kwargs):
     return r
 
 
+@pytest.mark.slow
 def test_full_graph_covers_a_room_with_the_paper_planner_and_terminates(tmp_path):
     """The default graph (paper planner): sim + sonar + planner + monitor + recorder in one
     executor, with 1.5 s of sonar silence half-way: the planner stops, resumes, covers >= 99 %
@@ -83,6 +84,7 @@ def test_full_graph_covers_a_room_with_the_paper_planner_and_terminates(tmp_path
     assert set(r['primitive_lengths_m']) >= {'lap', 'boundary', 'gvd'}
 
 
+@pytest.mark.slow
 def test_full_graph_with_the_grid_planner_covers_a_small_world(tmp_path):
     """``planner='grid'`` (ours) in the same graph: every free point of the 9 m x 6 m room is
     within delta = 2 m of a wall or the obstacle, so VR is empty and the grid planner's space
