@@ -13,6 +13,19 @@ from paramotion.gough_stewart import forward_kinematics
 from paramotion.rotations import matrix_from_rotvec
 
 
+def control_period(ctl, t, legs, hist, measured, feed_p, feed_R):
+    """One control period of ``ctl`` at ``t``: the legs' state, the tracker frame of period
+    ``measured`` from ``hist`` (none while it is negative, i.e. within the latency) and the
+    target; returns the commanded leg lengths."""
+    ctl.add_leg_state(t, legs)
+    if measured >= 0:
+        ts, pbm, Rbm, fpm, fRm = hist[measured]
+        ctl.add_base(t, ts, pbm, Rbm)
+        ctl.add_feed(t, ts, fpm, fRm)
+    ctl.set_target(t, feed_p, feed_R)
+    return ctl.update(t).lengths
+
+
 def kinematic_isolation_run(cfg, mode, latency, duration, settle, without=(),
                             stop_on_divergence=False, **attrs):
     """(feed RMS error in m from ``settle`` s on, the controller's stroke-clip count).
@@ -37,13 +50,7 @@ def kinematic_isolation_run(cfg, mode, latency, duration, settle, without=(),
         guess = (fk.position, fk.rotation)
         fp, fR = pb + Rb @ fk.position, Rb @ fk.rotation
         hist.append((t, pb, Rb, fp, fR))
-        ctl.add_leg_state(t, legs)
-        if k >= n_lat:
-            ts, pbm, Rbm, fpm, fRm = hist[k - n_lat]
-            ctl.add_base(t, ts, pbm, Rbm)
-            ctl.add_feed(t, ts, fpm, fRm)
-        ctl.set_target(t, feed_p, feed_R)
-        legs = ctl.update(t).lengths
+        legs = control_period(ctl, t, legs, hist, k - n_lat, feed_p, feed_R)
         if t >= settle:
             errs.append(np.linalg.norm(fp - feed_p))
         if stop_on_divergence and (not np.all(np.isfinite(legs)) or errs and errs[-1] > 1.0):

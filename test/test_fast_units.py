@@ -3,7 +3,7 @@ import math
 
 import numpy as np
 import pytest
-from fast_kinematic import kinematic_isolation_run
+from fast_kinematic import control_period, kinematic_isolation_run
 
 from cable_robot_pkg.fast.cables import Cable, CableSystem, InfeasibleTensionError, gravity_wrench
 from cable_robot_pkg.fast.configuration import load_config
@@ -338,13 +338,7 @@ def _coupled_isolation_run(cfg, latency, peak_gain_max, duration=5.0, predictor=
             torque = torque + np.cross(fp - pivot, -m_f * a)[:2]
         om = om + dt * (torque / inertia - wn ** 2 * th - 2 * zeta * wn * om)
         th = th + dt * om
-        ctl.add_leg_state(t, legs)
-        if k >= n_lat:
-            ts, pbm, Rbm, fpm, fRm = hist[k - n_lat]
-            ctl.add_base(t, ts, pbm, Rbm)
-            ctl.add_feed(t, ts, fpm, fRm)
-        ctl.set_target(t, feed_p, feed_R)
-        legs = ctl.update(t).lengths
+        legs = control_period(ctl, t, legs, hist, k - n_lat, feed_p, feed_R)
         if t > 2.0:
             errs.append(np.linalg.norm(fp - feed_p))
         if not np.all(np.isfinite(legs)) or (errs and errs[-1] > 0.3) or ctl.clip_count:
