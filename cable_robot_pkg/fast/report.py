@@ -23,8 +23,8 @@ from pathlib import Path
 SPEC_MM, SPEC_DEG = 4.0, 0.1
 COUPLED = str(Path(__file__).parent / 'config' / 'coupled.yaml')
 #: Winds (seed, direction deg) by role. The packaged config blows seed 1 toward 30 deg.
-#: ``dev``: the winds the predictor's settings were chosen on; ``report``: the winds of the
-#: earlier reports (not used for tuning); ``held_out``: winds used nowhere else.
+#: ``dev``: the winds the predictor's settings were chosen on; ``report``: validation winds,
+#: not used for tuning but looked at while developing; ``held_out``: winds used nowhere else.
 WINDS = {'dev': ((1, 30.0), (2, 160.0), (3, 340.0)),
          'report': ((23, 300.0), (7, 120.0), (11, 250.0), (42, 75.0), (99, 190.0)),
          'held_out': ((31, 45.0), (57, 135.0), (64, 215.0), (88, 280.0), (123, 350.0))}
@@ -170,7 +170,7 @@ def _sweep_rows(res):
     return rows, limits
 
 
-ROLE_NAME = {'dev': 'development', 'report': 'earlier reports', 'held_out': 'held out'}
+ROLE_NAME = {'dev': 'development', 'report': 'validation', 'held_out': 'held out'}
 
 
 def _within_spec(r):
@@ -362,8 +362,8 @@ def write_report(out_dir: Path, quick: bool = False) -> list:
         + '.', '',
         f'## Spec over conditions ({SPEC_MM:g} mm / {SPEC_DEG:g} deg RMS)', '',
         f'Runs of {spec_duration:g} s (statistics from 5 s). Winds: *development* = the '
-        "winds the predictor's settings were chosen on; *earlier reports* = the winds of "
-        'the previous reports, not used for tuning; *held out* = used nowhere else.', '',
+        "winds the predictor's settings were chosen on; *validation* = winds not used for "
+        'tuning but looked at while developing; *held out* = used nowhere else.', '',
         *spec, '',
         'Spec held (runs within spec / runs): ' + '; '.join(
             f'{m}, {ROLE_NAME[role]} winds, {1000 * lat:g} ms: {sum(v)}/{len(v)}'
