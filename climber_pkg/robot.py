@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import yaml
 
+from paramotion import yamlfile
 from paramotion.errors import UserError
 from paramotion.gough_stewart import GoughStewartGeometry
 
@@ -76,7 +77,7 @@ def load_robot_config(path: str | os.PathLike[str] | None = None) -> RobotConfig
     path = path or DEFAULT_CONFIG
     try:
         with open(path, encoding='utf-8') as handle:
-            tree = yaml.safe_load(handle)
+            tree = yamlfile.safe_load(handle)
     except OSError as exc:
         raise UserError(f'robot config {path}: cannot read ({exc.strerror})') from exc
     except yaml.YAMLError as exc:

@@ -35,6 +35,7 @@ from xml.parsers import expat
 
 import yaml
 
+from paramotion import yamlfile
 from paramotion.errors import UserError
 
 PACKAGE = 'paramotion'
@@ -195,7 +196,7 @@ def _fix_scalar(v):
 def typed_value(text: str) -> ParamValue:
     """A parameter value from its text as ``ros2 launch`` types it (YAML scalars/lists)."""
     try:
-        value = yaml.safe_load(text)
+        value = yamlfile.safe_load(text)
     except yaml.YAMLError:
         return text
     if value is None:

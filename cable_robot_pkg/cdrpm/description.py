@@ -31,6 +31,7 @@ from typing import Optional
 import numpy as np
 import yaml
 
+from paramotion import yamlfile
 from paramotion.errors import UserError
 
 #: Geometric tolerance (m) for "lies on the platform surface" and "inside the frame" checks.
@@ -129,7 +130,7 @@ def load_description(path: str | Path | None = None) -> RobotDescription:
     except OSError as exc:
         raise UserError(f'robot description {path}: cannot read ({exc.strerror})') from None
     try:
-        data = yaml.safe_load(text)
+        data = yamlfile.safe_load(text)
     except yaml.YAMLError as exc:
         where = getattr(exc, 'problem_mark', None)
         line = f' at line {where.line + 1}' if where is not None else ''

@@ -34,6 +34,7 @@ from cable_robot_pkg.fast.focal_surface import (
     Track,
     hinge_rotation,
 )
+from paramotion import yamlfile
 from paramotion.errors import UserError
 from paramotion.gough_stewart import GoughStewartGeometry, inverse_kinematics
 
@@ -186,13 +187,13 @@ def load_config(path: str | os.PathLike[str] | None = None,
                 overrides: dict | None = None) -> FastConfig:
     """Read, merge over the defaults, and validate a config; returns :class:`FastConfig`."""
     with open(DEFAULT_CONFIG, encoding='utf-8') as f:
-        raw = yaml.safe_load(f)
+        raw = yamlfile.safe_load(f)
     source = os.path.basename(DEFAULT_CONFIG)
     if path is not None:
         source = os.path.basename(str(path))
         try:
             with open(path, encoding='utf-8') as f:
-                user = yaml.safe_load(f)
+                user = yamlfile.safe_load(f)
         except FileNotFoundError:
             raise UserError(f'config {path}: no such file') from None
         except yaml.YAMLError as exc:

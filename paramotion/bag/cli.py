@@ -7,6 +7,7 @@ import time
 
 import yaml
 
+from paramotion import yamlfile
 from paramotion.bag.reader import BagInfo, TopicInfo, bag_info
 from paramotion.errors import UserError
 
@@ -142,7 +143,7 @@ def metadata_yaml(topics: dict[str, TopicInfo], message_count: int, start_ns: in
             rihs = ''
         entries.append({'topic_metadata': {
             'name': name, 'type': t.msgtype, 'serialization_format': 'cdr',
-            'offered_qos_profiles': yaml.safe_load(t.offered_qos_profiles or '[]') or [],
+            'offered_qos_profiles': yamlfile.safe_load(t.offered_qos_profiles or '[]') or [],
             'type_description_hash': rihs}, 'message_count': t.count})
     duration = max(0, end_ns - start_ns)
     doc = {'rosbag2_bagfile_information': {

@@ -9,6 +9,8 @@ from rclpy.qos import (
     ReliabilityPolicy,
 )
 
+from paramotion import yamlfile
+
 
 def _policy(enum, value, default):
     if isinstance(value, int):
@@ -36,7 +38,7 @@ def _time(value):
 def profiles_from_yaml(text: str | None) -> list[QoSProfile]:
     """Parse an ``offered_qos_profiles`` string into rclpy ``QoSProfile`` objects."""
     try:
-        items = yaml.safe_load(text) if text else []
+        items = yamlfile.safe_load(text) if text else []
     except yaml.YAMLError:
         return []
     profiles = []

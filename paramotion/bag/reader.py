@@ -12,11 +12,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
 from mcap.exceptions import McapError
 from mcap.records import Channel, DataEnd, Footer, Message, Schema
 from mcap.stream_reader import StreamReader
 
+from paramotion import yamlfile
 from paramotion.errors import UserError
 
 
@@ -79,7 +79,7 @@ def find_mcap(path: str | os.PathLike[str]) -> tuple[Path, Path]:
     meta = path / 'metadata.yaml'
     if meta.is_file():
         try:
-            doc = yaml.safe_load(meta.read_text())
+            doc = yamlfile.safe_load(meta.read_text())
             files = doc['rosbag2_bagfile_information']['relative_file_paths']
             if files:
                 return path, path / files[0]
