@@ -13,6 +13,7 @@ from __future__ import annotations
 import os
 import random
 import time
+from collections import deque
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any, Literal, TypeVar
@@ -29,6 +30,7 @@ from rclpy.executors import (
 from rclpy.experimental.events_executor import EventsExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
+from rclpy.serialization import deserialize_message
 from rclpy.subscription import Subscription
 
 from paramotion.clock import ClockSourceNode
@@ -50,10 +52,12 @@ DEFAULT_EXECUTOR = 'lockstep'
 
 #: What a Graph does unless told otherwise (``paramotion bench --levers`` switches them one at
 #: a time to measure each): the executor, whether the clock source sets the nodes' time
-#: directly in lock-step, whether a private graph's nodes skip their parameter services, and
-#: whether the lock-step drain polls QoS event handlers only in a drain's first round.
+#: directly in lock-step, whether a private graph's nodes skip their parameter services,
+#: whether the lock-step drain polls QoS event handlers only in a drain's first round, and
+#: whether it hands messages between the graph's own nodes itself (:class:`InProcessDelivery`).
 GRAPH_DEFAULTS = {'executor': DEFAULT_EXECUTOR, 'direct_time': True,
-                  'private_without_services': True, 'qos_events_first_round_only': True}
+                  'private_without_services': True, 'qos_events_first_round_only': True,
+                  'in_process_delivery': True}
 
 
 @contextmanager
@@ -184,7 +188,8 @@ class Graph:
         self.executor_kind = kind
         self.executor = make_executor(kind, self.context)
         self._lockstep = LockstepDrain(self.executor, self.context,
-                                       GRAPH_DEFAULTS['qos_events_first_round_only'])
+                                       GRAPH_DEFAULTS['qos_events_first_round_only'],
+                                       GRAPH_DEFAULTS['in_process_delivery'])
         self.nodes = []
         self.max_callbacks_per_drain = max_callbacks_per_drain
         self.callbacks_run = 0
@@ -389,6 +394,7 @@ class Graph:
     def shutdown(self) -> None:
         """Destroy every node (recorders close their bags), the executor and the context."""
         owned = {id(c) for node in self.nodes for c in getattr(node, 'components', ())}
+        self._lockstep.close()
         for node in reversed(self.nodes):
             try:
                 self.executor.remove_node(node)
@@ -427,11 +433,18 @@ class LockstepDrain:
     """
 
     def __init__(self, executor: Executor, context: rclpy.Context,
-                 qos_events_first_round_only: bool = True) -> None:
+                 qos_events_first_round_only: bool = True,
+                 in_process_delivery: bool = False) -> None:
         self.executor = executor
         self.context = context
         self.qos_events_first_round_only = qos_events_first_round_only
         self._wait_sets = {}
+        self.delivery = InProcessDelivery() if in_process_delivery else None
+
+    def close(self) -> None:
+        """Give the publishers back their middleware ``publish``."""
+        if self.delivery is not None:
+            self.delivery.close()
 
     def drain(self, check_runaway: Callable[[int], None]) -> int:
         """Run rounds until one finds nothing ready; returns how many callbacks ran."""
@@ -464,15 +477,30 @@ class LockstepDrain:
                      list(node.services),
                      [w for w in node.waitables if qos_events or not isinstance(w, EventHandler)])
                     for node in nodes]
-        ws = self._fill_wait_set(per_node)
-        ws.wait(timeout_ns)
-        subs_ready = set(ws.get_ready_entities('subscription'))
-        timers_ready = set(ws.get_ready_entities('timer'))
-        clients_ready = set(ws.get_ready_entities('client'))
-        services_ready = set(ws.get_ready_entities('service'))
+        delivery = self.delivery
+        queues, held = {}, ()
+        if delivery is not None:
+            # Subscriptions fed in process are not in the wait set; like the wait, the
+            # snapshot of their queues says which of them have a message this round.
+            delivery.route(nodes)
+            queues = delivery.queues
+            held = delivery.snapshot()
+            waited = [(node, timers, [s for s in subs if id(s) not in delivery.fed], *rest)
+                      for node, timers, subs, *rest in per_node]
+        else:
+            waited = per_node
+        ws = self._fill_wait_set(waited)
+        if ws is not None:
+            ws.wait(timeout_ns)
+            subs_ready = set(ws.get_ready_entities('subscription'))
+            timers_ready = set(ws.get_ready_entities('timer'))
+            clients_ready = set(ws.get_ready_entities('client'))
+            services_ready = set(ws.get_ready_entities('service'))
+        else:
+            subs_ready = timers_ready = clients_ready = services_ready = set()
         ran = 0
         ready_waitables = [(wt, node) for node, *_, waitables in per_node
-                           for wt in waitables if wt.is_ready(ws)]
+                           for wt in waitables if ws is not None and wt.is_ready(ws)]
         for wt, node in ready_waitables:
             ran += self._run_handler(wt, node, ex._take_waitable)
         for node, timers, subs, clients, services, _ in per_node:
@@ -482,7 +510,10 @@ class LockstepDrain:
                     tmr.callback()
                     ran += 1
             for sub in subs:
-                if sub.handle.pointer in subs_ready:
+                if id(sub) in held:
+                    sub.callback(queues[id(sub)].popleft())
+                    ran += 1
+                elif sub.handle.pointer in subs_ready:
                     msg_info = sub.handle.take_message(sub.msg_type, sub.raw)
                     if msg_info is not None:
                         if sub._callback_type is Subscription.CallbackType.MessageOnly:
@@ -510,7 +541,10 @@ class LockstepDrain:
             waits += 1
 
     def _fill_wait_set(self, per_node: list[tuple]) -> Any:
+        """The reused wait set of these entities, filled; None when there are none."""
         key = tuple(id(e) for entry in per_node for group in entry[1:] for e in group)
+        if not key:
+            return None
         ws = self._wait_sets.get(key)
         if ws is None:
             counts = [0, 0, 0, 0, 0, 0]   # subs, guards, timers, clients, services, events
@@ -559,6 +593,224 @@ class LockstepDrain:
         """One round of the executor's own wait (pending coroutine tasks or guard conditions,
         which the direct round does not handle)."""
         return rclpy_wait_round(self.executor)
+
+
+class InProcessDelivery:
+    """Messages between the nodes of one lock-step graph, handed over in process.
+
+    A component container with intra-process communication does this in rclcpp; rclpy has
+    none, so every message a graph's node published for another went through the middleware:
+    serialised, written, taken, and converted back into Python objects field by field (in the
+    FAST graph more CPU than the simulator's state computation). Here the publishers of a
+    topic whose every reader is a subscription of this graph's nodes put a copy of each message
+    (:func:`copy_message`: the same values and Python types the middleware would deliver, a
+    float32 field rounded as it would be) straight into each reader's queue. Queues keep the
+    reader's QoS depth (``KEEP_LAST``: the oldest is dropped, as the middleware's history
+    does). :class:`LockstepDrain` takes a snapshot of the queues where it waits and runs each
+    reader that had a message in its place in the executor's order, oldest message first, as
+    it would after the wait: the callbacks run in the same order with the same messages.
+
+    A topic stays on the middleware when one of its readers is raw (a bag recorder), wants
+    the message info, or lies outside the graph (the middleware counts more matched readers
+    than the graph has: another process, a node not added to the graph); when its publishers
+    are transient-local (late joiners get the history from the middleware); or when a reader
+    has a publisher outside the graph. A publisher re-checks the count of matched readers on
+    every message and goes back to the middleware when it changes.
+    """
+
+    def __init__(self) -> None:
+        self.queues = {}     # id(subscription) -> deque of messages not yet taken
+        self.fed = set()     # id(subscription) of the readers fed in process
+        self._hooked = {}    # id(publisher) -> publisher whose publish is replaced
+        self._key = None
+
+    def snapshot(self) -> set[int]:
+        """The readers with a message waiting (as the wait would find them ready)."""
+        return {key for key, queue in self.queues.items() if queue}
+
+    def route(self, nodes: list[Node]) -> None:
+        """Decide each topic's path again when the graph's publishers or readers changed."""
+        key = tuple(id(e) for node in nodes for e in (*node.publishers, *node.subscriptions))
+        if key != self._key:
+            self._route(nodes)
+            self._key = key
+
+    def _route(self, nodes: list[Node]) -> None:
+        from collections import defaultdict
+        topics = defaultdict(lambda: ([], []))
+        for node in nodes:
+            for pub in node.publishers:
+                topics[pub.topic_name][0].append(pub)
+            for sub in node.subscriptions:
+                topics[sub.topic_name][1].append(sub)
+        fed, hooked = set(), {}
+        for pubs, subs in topics.values():
+            if not pubs or not _in_process_topic(pubs, subs):
+                continue
+            targets = [(self._queue(sub), _depth(sub)) for sub in subs]
+            for pub in pubs:
+                pub.publish = self._publisher(pub, targets, len(subs))
+                hooked[id(pub)] = pub
+            fed.update(id(sub) for sub in subs)
+        for key, pub in self._hooked.items():
+            if key not in hooked:
+                pub.__dict__.pop('publish', None)
+        self._hooked = hooked
+        self.fed = fed
+
+    def _queue(self, sub: Subscription) -> deque:
+        """The reader's queue; messages the middleware holds for it move there first."""
+        queue = self.queues.setdefault(id(sub), deque())
+        if id(sub) not in self.fed:
+            depth = _depth(sub)
+            while True:
+                taken = sub.handle.take_message(sub.msg_type, False)
+                if taken is None:
+                    break
+                _put(queue, taken[0], depth)
+        return queue
+
+    def _publisher(self, pub: Any, targets: list, readers: int) -> Callable[[Any], None]:
+        msg_type = pub.msg_type
+        middleware = type(pub).publish.__get__(pub)
+
+        def publish(msg: Any) -> None:
+            if type(msg) is not msg_type and not isinstance(msg, msg_type):
+                if not isinstance(msg, bytes):
+                    middleware(msg)      # the middleware's TypeError
+                    return
+                msg = deserialize_message(msg, msg_type)
+            if pub.get_subscription_count() != readers:    # a reader came or went
+                self._key = None
+                pub.__dict__.pop('publish', None)
+                middleware(msg)
+                return
+            for queue, depth in targets:
+                _put(queue, copy_message(msg), depth)
+        return publish
+
+    def close(self) -> None:
+        """Give every publisher back its middleware ``publish``."""
+        for pub in self._hooked.values():
+            pub.__dict__.pop('publish', None)
+        self._hooked = {}
+        self.fed = set()
+        self._key = None
+
+
+def _in_process_topic(pubs: list, subs: list) -> bool:
+    """True when the graph's nodes are the only publishers and readers of the topic and no
+    reader needs what only the middleware gives (raw bytes, message info, history for a late
+    joiner)."""
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy
+    msg_type = pubs[0].msg_type
+    for pub in pubs:
+        if pub.msg_type is not msg_type or \
+                pub.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL or \
+                pub.get_subscription_count() != len(subs):
+            return False
+    for sub in subs:
+        if sub.raw or sub.msg_type is not msg_type or \
+                sub._callback_type is not Subscription.CallbackType.MessageOnly or \
+                sub.qos_profile.history not in (HistoryPolicy.KEEP_LAST,
+                                                HistoryPolicy.KEEP_ALL) or \
+                sub.get_publisher_count() != len(pubs):
+            return False
+    return True
+
+
+def _depth(sub: Subscription) -> int:
+    """The reader's queue length (0: unbounded, ``KEEP_ALL``)."""
+    from rclpy.qos import HistoryPolicy
+    qos = sub.qos_profile
+    return max(1, qos.depth) if qos.history == HistoryPolicy.KEEP_LAST else 0
+
+
+def _put(queue: Any, msg: Any, depth: int) -> None:
+    queue.append(msg)
+    if depth and len(queue) > depth:
+        queue.popleft()
+
+
+_COPIERS: dict[type, Callable[[Any], Any]] = {}
+
+
+def copy_message(msg: Any) -> Any:
+    """A copy of a ROS message with what a subscriber of the middleware receives: every
+    nested message new, sequences new (``array.array`` for numbers, lists otherwise), numpy
+    arrays copied, scalars as Python ``float``/``int``/``bool``/``str`` (a ``float32`` field
+    rounded to single precision). Built once per message type, without the field setters."""
+    cls = type(msg)
+    copier = _COPIERS.get(cls)
+    if copier is None:
+        copier = _COPIERS[cls] = _make_copier(cls)
+    return copier(msg)
+
+
+def _make_copier(cls: type) -> Callable[[Any], Any]:
+    import array
+    import struct
+
+    import numpy as np
+    from rosidl_parser.definition import (
+        AbstractNestedType,
+        AbstractString,
+        AbstractWString,
+        BasicType,
+        NamespacedType,
+    )
+    ints = {'int8', 'uint8', 'int16', 'uint16', 'int32', 'uint32', 'int64', 'uint64'}
+    f32 = struct.Struct('f')
+
+    def scalar(t):
+        if isinstance(t, (AbstractString, AbstractWString)):
+            return str
+        name = t.typename
+        if name in ('double', 'long double'):
+            return float
+        if name == 'float':
+            return lambda v: f32.unpack(f32.pack(v))[0]
+        if name in ints:
+            return int
+        if name == 'boolean':
+            return bool
+        return None     # octet, char: as stored
+
+    def sequence(t):
+        inner = t.value_type
+        if isinstance(inner, NamespacedType):
+            return lambda v: [copy_message(m) for m in v]
+        convert = scalar(inner) if isinstance(inner, (BasicType, AbstractString,
+                                                      AbstractWString)) else None
+
+        def copy(v):
+            if isinstance(v, array.array):
+                return array.array(v.typecode, v)
+            if isinstance(v, np.ndarray):
+                return v.copy()
+            return [convert(x) for x in v] if convert is not None else list(v)
+        return copy
+
+    plan = []
+    for name, t in zip(cls.get_fields_and_field_types(), cls.SLOT_TYPES):
+        if isinstance(t, NamespacedType):
+            plan.append(('_' + name, copy_message))
+        elif isinstance(t, AbstractNestedType):
+            plan.append(('_' + name, sequence(t)))
+        else:
+            plan.append(('_' + name, scalar(t)))
+    has_check = '_check_fields' in cls.__slots__
+    new = cls.__new__
+
+    def copier(msg):
+        out = new(cls)
+        for slot, convert in plan:
+            value = getattr(msg, slot)
+            setattr(out, slot, value if convert is None else convert(value))
+        if has_check:
+            out._check_fields = msg._check_fields
+        return out
+    return copier
 
 
 def rclpy_wait_round(executor: Executor) -> int:
