@@ -59,6 +59,17 @@ class ClockSourceNode(ParamotionNode):
         Param('sync_timeout', 1.0, 'Free-running with sync_max_lag >= 0: wall seconds to wait '
               'for an answer before advancing anyway (and warning once: controller gone).',
               min=0.01, max=60.0, read_only=True),
+        Param('sync_expect', [''], 'Free-running with sync_max_lag >= 0: the controllers '
+              '(answer sources) expected to answer; each must have answered by sync_first_by '
+              'sim seconds, or the simulator waits for it there.', read_only=True),
+        Param('sync_first_by', 0.25, 'Free-running with sync_max_lag >= 0: sim seconds within '
+              'which an expected controller answers first, and its second answer follows its '
+              'first (its period is known from its second answer on).', min=0.001, max=60.0,
+              read_only=True),
+        Param('sync_repeat', 0.05, 'Free-running with sync_max_lag >= 0: while waiting for an '
+              'answer, publish the current time on /clock again at most this often (wall s; '
+              '/clock is best effort, a controller that lost the sample would never answer).',
+              min=0.001, max=10.0, read_only=True),
     )
 
     def __init__(self, node_name: str, **kwargs: Any) -> None:
@@ -77,7 +88,10 @@ class ClockSourceNode(ParamotionNode):
         self.answers = {}
         self.sync_waits = 0           # timer ticks that waited for an answer
         self._sync_lag_ns = int(round(self.params.sync_max_lag * NS))
+        self._first_by_ns = int(round(self.params.sync_first_by * NS))
+        self._expected = [name for name in self.params.sync_expect if name]
         self._sync_since = None       # wall time (monotonic) the current wait began
+        self._said_at = 0.0           # wall time (monotonic) /clock was last published
         self._sync_warned = False
         if not self.params.lockstep:
             self._start_free_running()
@@ -144,10 +158,18 @@ class ClockSourceNode(ParamotionNode):
             entry[0] = stamp_ns
 
     def _late_answer(self) -> str | None:
-        """The first controller whose answer is overdue by more than the lag, else None."""
+        """The first controller whose answer is overdue by more than the lag, else None: an
+        expected one that has not answered by ``sync_first_by``, one with a single answer
+        ``sync_first_by`` after it, any other one period (its median interval) after its last.
+        """
         limit = self.sim_time_ns - self._sync_lag_ns
+        first_by = self._first_by_ns
+        if first_by <= limit:
+            for source in self._expected:
+                if source not in self.answers:
+                    return source
         for source, (last, interval, _) in self.answers.items():
-            if interval is not None and last + interval <= limit:
+            if last + (first_by if interval is None else interval) <= limit:
                 return source
         return None
 
@@ -167,8 +189,11 @@ class ClockSourceNode(ParamotionNode):
         if now - self._sync_since < self.params.sync_timeout:
             self.sync_waits += 1
             # /clock is best effort: a controller that lost the sample of this time (a reader
-            # matched late, a full queue) would never tick and answer; say the time again.
-            self._clock_pub.publish(ClockMsg(clock=self.stamp()))
+            # matched late, a full queue) would never tick and answer; say the time again
+            # (not at every wall tick: each repeat costs every /clock reader a callback).
+            if now - self._said_at >= self.params.sync_repeat:
+                self._said_at = now
+                self._clock_pub.publish(ClockMsg(clock=self.stamp()))
             return True
         if not self._sync_warned:
             self._sync_warned = True
@@ -192,6 +217,8 @@ class ClockSourceNode(ParamotionNode):
         self.sim_time_ns += self._period_ns
         msg = ClockMsg(clock=self.stamp())
         self._clock_pub.publish(msg)
+        if self._sync_lag_ns >= 0:
+            self._said_at = time.monotonic()
         for hook in self.clock_hooks:
             hook(msg)
         self.publish_state()

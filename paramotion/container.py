@@ -20,6 +20,17 @@ it can hold, by node name), each with
 :func:`paramotion.node.run_node` runs a container like any node: ``spin_node`` adds the
 components to the same executor (``PARAMOTION_EXECUTOR``), and the container destroys them
 when it is destroyed.
+
+**Sim time in a container** (``sim_timers``, default ``container``): spun in its own process
+(:meth:`ComponentContainer.start_clock`, called by ``spin_node``), the container subscribes to
+``/clock`` once for all its nodes (:class:`ContainerClock`): each ``/clock`` message sets the
+time of every node's clock, then the sim-time timers that the new time made due fire at once,
+in the components' order, each once. The executor never dispatches them itself (they are
+never due when it looks), so the timers tick at the same sim times with any executor.
+``executor`` leaves each node its own ``/clock`` subscription and its timers to the executor:
+rclpy 7.1.6's ``EventsExecutor`` then fires a sim-time timer twice at one time (and late
+afterwards) when two clock jumps of its node are handled before the timer's dispatch, which a
+busy container does (``test/test_fast_composition.py`` shows it).
 """
 from __future__ import annotations
 
@@ -27,9 +38,22 @@ import sys
 from collections.abc import Sequence
 from typing import Any
 
+from rclpy.clock_type import ClockType
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock as ClockMsg
+
 from paramotion.node import Param, ParamotionNode, overrides_from_dict
 
 _NAME_RULES = ('__node', '__name', '__ns')
+SIM_TIMERS = ('container', 'executor')
+
+#: The container's one ``/clock`` subscription: best effort like rclpy's own (a free-running
+#: simulator never waits on it), but deep enough that a container behind by a few periods
+#: still sees every time its simulator said, in order, and fires each timer at its own time.
+CONTAINER_CLOCK_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=20,
+    reliability=ReliabilityPolicy.BEST_EFFORT, durability=DurabilityPolicy.VOLATILE)
 
 
 def component_params(components: dict[str, type[ParamotionNode]]) -> tuple[Param, ...]:
@@ -37,7 +61,12 @@ def component_params(components: dict[str, type[ParamotionNode]]) -> tuple[Param
     and ``<node>.<parameter>`` for each component parameter (read only: the start-up value)."""
     names = tuple(components)
     out = [Param('components', list(names), 'Nodes this container starts, by node name (a '
-                 'subset of the default list).', choices=names, read_only=True)]
+                 'subset of the default list).', choices=names, read_only=True),
+           Param('sim_timers', 'container', "Who fires the nodes' sim-time timers in a "
+                 "container process of its own: 'container' (one /clock subscription sets "
+                 "every node's time and fires the timers it made due, in node order) or "
+                 "'executor' (each node's own /clock subscription, the executor's timers).",
+                 choices=SIM_TIMERS, read_only=True)]
     for name, cls in components.items():
         for spec in cls.PARAMS:
             out.append(Param(f'{name}.{spec.name}', spec.default,
@@ -90,6 +119,7 @@ class ComponentContainer(ParamotionNode):
         services = {k: kwargs[k] for k in ('start_parameter_services',) if k in kwargs}
         type_service = self.get_parameter('start_type_description_service').value
         self.components = []
+        self.sim_clock = None
         try:
             for name, cls in self.COMPONENTS.items():
                 if name not in self.params.components:
@@ -107,6 +137,15 @@ class ComponentContainer(ParamotionNode):
             self.destroy_node()
             raise
 
+    def start_clock(self) -> ContainerClock | None:
+        """In a process of its own (``spin_node`` calls this): with ``sim_timers`` =
+        ``container`` and sim time on, take the nodes' sim time over (:class:`ContainerClock`).
+        """
+        if self.params.sim_timers == 'container' and self.sim_clock is None and \
+                self.get_parameter('use_sim_time').value:
+            self.sim_clock = ContainerClock(self, [self, *self.components])
+        return self.sim_clock
+
     def destroy_node(self) -> None:
         """Destroy the components (last started first), then the container."""
         while self.components:
@@ -114,4 +153,47 @@ class ComponentContainer(ParamotionNode):
         return super().destroy_node()
 
 
-__all__ = ['ComponentContainer', 'component_params', 'remap_rules']
+class ContainerClock:
+    """One ``/clock`` subscription (on ``owner``) for the sim time of ``nodes``.
+
+    Each message sets the time of every node's clock (through its time source, whose own
+    ``/clock`` subscription is dropped), then fires the sim-time timers it made due, node by
+    node in ``nodes`` order, each at most once (a timer that missed periods catches up the
+    way rcl counts them, as with any executor). The timers are called here, inside the
+    ``/clock`` callback, so whichever executor spins the nodes finds them not due: it never
+    fires one itself, twice or late. ``ticks`` counts the timer calls.
+    """
+
+    def __init__(self, owner: Node, nodes: Sequence[Node]) -> None:
+        self.nodes = list(nodes)
+        self.sources = []
+        self.ticks = 0
+        for node in self.nodes:
+            source = node._time_source
+            if source.ros_time_is_active and source not in self.sources:
+                if source._clock_sub is not None:
+                    node.destroy_subscription(source._clock_sub)
+                    source._clock_sub = None
+                self.sources.append(source)
+        self.subscription = owner.create_subscription(ClockMsg, '/clock', self.on_clock,
+                                                      CONTAINER_CLOCK_QOS)
+
+    def on_clock(self, msg: ClockMsg) -> None:
+        """Set every node's time to ``msg``, then fire the sim-time timers now due."""
+        for source in self.sources:
+            source.clock_callback(msg)
+        for node in self.nodes:
+            for timer in list(node.timers):
+                if timer.clock.clock_type != ClockType.ROS_TIME:
+                    continue
+                handle = timer.handle
+                with handle:
+                    if not handle.is_timer_ready():
+                        continue
+                    handle.call_timer()
+                self.ticks += 1
+                timer.callback()
+
+
+__all__ = ['CONTAINER_CLOCK_QOS', 'ComponentContainer', 'ContainerClock', 'component_params',
+           'remap_rules']

@@ -17,11 +17,12 @@ from launch_helpers import (
 
 from cable_robot_pkg.fast.control_container_node import COMPONENTS, FastControlContainer
 from cable_robot_pkg.fast.sim_node import FastSimNode
-from paramotion.container import remap_rules
+from paramotion.container import ComponentContainer, component_params, remap_rules
 from paramotion.errors import ParameterError
-from paramotion.graph import Graph
+from paramotion.graph import Graph, private_domain_id
 from paramotion.launch import compose
 from paramotion.launch_xml import load as load_launch
+from paramotion.node import ParamotionNode
 
 
 def test_remap_rules_keep_topics_and_drop_the_process_node_name():
@@ -60,6 +61,120 @@ def test_container_refuses_a_bad_component_parameter_naming_it():
             graph.add(FastControlContainer, **{'fast_isolation_controller.rate': 10.0})
         with pytest.raises(ParameterError, match="'components'"):
             graph.add(FastControlContainer, components=['fast_sim'])
+
+
+def test_events_executor_fires_a_sim_time_timer_twice_after_two_clock_jumps():
+    """Why a container sets its nodes' time and fires their sim-time timers itself: rclpy
+    7.1.6's EventsExecutor queues a re-check of a ROS clock's timers on each forward jump, and
+    each re-check queues a dispatch of every timer due then, also of one whose dispatch is
+    already queued; a dispatch calls the timer without asking whether it is still due. Two
+    jumps of one clock past a 20 ms timer's due time before the executor runs (in a busy
+    container: the next /clock message handled before the timer's dispatch) call it twice at
+    22 ms and move its next call from 40 to 60 ms. One jump calls it once."""
+    import rclpy
+    from rclpy.experimental.events_executor import EventsExecutor
+    from rclpy.node import Node
+    from rclpy.parameter import Parameter
+    from rclpy.time import Time
+
+    def calls_after(bursts):
+        context = rclpy.Context()
+        rclpy.init(context=context, domain_id=0)
+        try:
+            node = Node('timer_twice', context=context, enable_rosout=False,
+                        start_parameter_services=False,
+                        parameter_overrides=[Parameter('use_sim_time', value=True)])
+            calls = []
+            node.create_timer(0.02, lambda: calls.append(
+                node.get_clock().now().nanoseconds // 1_000_000))
+            executor = EventsExecutor(context=context)
+            executor.add_node(node)
+            executor.spin_once(timeout_sec=0.05)     # the executor takes the timer on
+            for burst in bursts:                     # jumps (ms) before the executor runs
+                for ms in burst:
+                    node.get_clock().set_ros_time_override(Time(nanoseconds=ms * 1_000_000))
+                for _ in range(6):
+                    executor.spin_once(timeout_sec=0.01)
+            executor.shutdown()
+            node.destroy_node()
+            return calls
+        finally:
+            rclpy.try_shutdown(context=context)
+
+    assert calls_after([(21,), (42,)]) == [21, 42]
+    assert calls_after([(21, 22), (42,), (61,)]) == [22, 22, 61]
+
+
+class _TickA(ParamotionNode):
+    def __init__(self, node_name='tick_a', **kwargs):
+        super().__init__(node_name, **kwargs)
+        self.create_timer(0.02, lambda: TICKS.append((self.get_name(), self._ms())))
+
+    def _ms(self):
+        return self.get_clock().now().nanoseconds // 1_000_000
+
+
+class _TickB(_TickA):
+    def __init__(self, node_name='tick_b', **kwargs):
+        ParamotionNode.__init__(self, node_name, **kwargs)
+        self.create_timer(0.01, lambda: TICKS.append((self.get_name(), self._ms())))
+
+
+TICKS = []
+
+
+class _TickContainer(ComponentContainer):
+    COMPONENTS = {'tick_a': _TickA, 'tick_b': _TickB}
+    PARAMS = component_params(COMPONENTS)
+
+    def __init__(self, **kwargs):
+        super().__init__('ticks', **kwargs)
+
+
+@pytest.mark.parametrize('executor', ['events', 'waitset'])
+def test_container_clock_fires_each_sim_time_timer_once_at_its_due_time(executor, monkeypatch):
+    """A container in its own process (spin_node) subscribes to /clock once: each message sets
+    every node's time and fires the timers it made due, in node order, each once, whatever
+    the executor, also when /clock messages arrive three at a time."""
+    import rclpy
+    from rosgraph_msgs.msg import Clock
+
+    from paramotion.clock import stamp_from_ns
+    from paramotion.graph import spin_node
+    from paramotion.qos import CLOCK_QOS
+
+    TICKS.clear()
+    monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'OFF')   # nobody else's /clock
+    context = rclpy.Context()
+    rclpy.init(context=context, domain_id=private_domain_id())
+    try:
+        box = _TickContainer(context=context, start_parameter_services=False,
+                             enable_rosout=False)
+        pub = box.create_publisher(Clock, '/clock', CLOCK_QOS)
+        sent = [0]
+
+        def step():
+            """Three /clock messages (5 ms apart) once the container has the last ones."""
+            if box.get_clock().now().nanoseconds != sent[0] * 1_000_000:
+                return False
+            if sent[0] >= 120:
+                return True
+            for _ in range(3):
+                sent[0] += 5
+                pub.publish(Clock(clock=stamp_from_ns(sent[0] * 1_000_000)))
+            return False
+
+        spin_node(box, executor, stop=step)
+        assert '/clock' not in [s.topic_name for n in box.components for s in n.subscriptions]
+        assert box.sim_clock.ticks == len(TICKS)
+        box.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=context)
+    expected = []
+    for ms in range(5, 121, 5):
+        expected += [(name, ms) for name, period in (('tick_a', 20), ('tick_b', 10))
+                     if ms % period == 0]
+    assert TICKS == expected
 
 
 def _feed_series(composed, duration=0.6):

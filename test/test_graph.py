@@ -133,6 +133,16 @@ def ticker_class(period):
     return Ticker
 
 
+def clock_source_class(name):
+    """A bare clock source named ``name`` (its wall timer, /clock, the sync gate)."""
+    from paramotion.clock import ClockSourceNode
+
+    class Source(ClockSourceNode):
+        def __init__(self, **kwargs):
+            super().__init__(name, **kwargs)
+    return Source
+
+
 def test_sim_time_timers_fire_on_time_with_the_new_clock():
     """A 0.1 s sim-time timer in a graph stepped every 0.01 s runs at 0.1, 0.2, ... and sees
     exactly that time (not the previous step's clock)."""
@@ -236,11 +246,7 @@ def test_free_running_source_waits_for_its_controllers_answers_then_times_out():
     """sync_max_lag: once a controller has answered twice (its interval known), a free-running
     clock source does not advance while that controller's next answer has been due for longer
     than the lag; without it for sync_timeout wall seconds it advances anyway."""
-    from paramotion.clock import ClockSourceNode
-
-    class Source(ClockSourceNode):
-        def __init__(self, **kwargs):
-            super().__init__('sync_source', **kwargs)
+    Source = clock_source_class('sync_source')
 
     ms = 1_000_000
     with Graph() as graph:
@@ -261,3 +267,65 @@ def test_free_running_source_waits_for_its_controllers_answers_then_times_out():
         graph.spin_wall(2.0, until=lambda: src.sim_time_ns > held + 80 * ms)
         assert src.sim_time_ns > held + 80 * ms        # controller gone: advancing again
         assert time.monotonic() - start > 0.5
+
+
+def test_waiting_source_says_its_time_again_at_most_every_sync_repeat():
+    """While a free-running source waits for an answer it publishes its (unchanged) time on
+    /clock again, for a reader that lost the best-effort sample, but at most once per
+    ``sync_repeat`` wall seconds, not at every tick of its wall timer."""
+    from rosgraph_msgs.msg import Clock
+
+    from paramotion.qos import CLOCK_QOS
+
+    Source = clock_source_class('repeat_source')
+
+    def repeats(sync_repeat):
+        with Graph() as graph:
+            src = graph.add(Source, lockstep=False, real_time_factor=0.0, publish_period=0.01,
+                            sync_max_lag=0.0, sync_timeout=5.0, sync_repeat=sync_repeat)
+            heard = []
+            listener = graph.add(ticker_class(1.0))
+            listener.create_subscription(Clock, '/clock', heard.append, CLOCK_QOS)
+            graph.spin_wall(0.1)
+            held = src.sim_time_ns
+            src.answered('ctl', held - 20_000_000)
+            src.answered('ctl', held - 10_000_000)     # next answer due at `held`: waits
+            graph.spin_wall(0.05)
+            assert src.sim_time_ns == held
+            heard.clear()
+            graph.spin_wall(0.5)
+            assert src.sim_time_ns == held and src.sync_waits > 20
+            return len(heard)
+
+    assert 2 <= repeats(0.2) <= 4
+    assert repeats(0.001) > 20
+
+
+def test_waiting_source_gates_expected_controllers_before_their_period_is_known():
+    """sync_expect / sync_first_by: an expected controller that has not answered holds the
+    source at sync_first_by; one that answered once holds it sync_first_by after that
+    answer (its period is known only from its second answer); without sync_expect nothing
+    holds a source whose controllers have not answered."""
+    Source = clock_source_class('first_source')
+
+    ms = 1_000_000
+    with Graph() as graph:
+        src = graph.add(Source, lockstep=False, real_time_factor=0.0, publish_period=0.01,
+                        sync_max_lag=0.0, sync_timeout=5.0, sync_first_by=0.1,
+                        sync_expect=['ctl'])
+        graph.spin_wall(0.3)
+        assert src.sim_time_ns == 100 * ms and src.sync_waits > 0
+        src.answered('ctl', 30 * ms)
+        graph.spin_wall(0.2)
+        assert src.sim_time_ns == 130 * ms
+        src.answered('ctl', 50 * ms)                   # period 20 ms: overdue since 70 ms
+        graph.spin_wall(0.2)
+        assert src.sim_time_ns == 130 * ms
+        src.answered('ctl', 110 * ms)
+        src.answered('ctl', 130 * ms)                  # median interval 20 ms
+        graph.spin_wall(0.2)
+        assert src.sim_time_ns == 150 * ms
+        free = graph.add(Source, name='free_source', lockstep=False, real_time_factor=0.0,
+                         publish_period=0.01, sync_max_lag=0.0, sync_first_by=0.1)
+        graph.spin_wall(0.3)
+        assert free.sim_time_ns > 150 * ms
