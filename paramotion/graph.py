@@ -32,7 +32,6 @@ from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 from rclpy.subscription import Subscription
-from rclpy.task import Future
 
 from paramotion.clock import ClockSourceNode
 from paramotion.node import overrides_from_dict
@@ -111,14 +110,12 @@ def spin_node(node: Node, kind: str | None = None,
     ``events`` runs them on rclpy's ``EventsExecutor`` (less CPU per message; a callback's
     exception is also logged by it at FATAL level before ``run_node`` sees it); its
     ``spin()`` waits in C++ without returning to Python, so a signal's Python handler would
-    never run: it is spun in slices of 0.1 s instead, which run every event as
+    never run: it is spun in ``spin_once`` slices of 0.1 s instead, which run every event as
     it arrives and end once ``stop()`` is true (a signal arrived: see
     :func:`paramotion.node.run_node`) or the context is shut down.
     """
     kind = kind or node_executor_kind()
     nodes = [node, *getattr(node, 'components', ())]
-    if hasattr(node, 'start_clock'):
-        node.start_clock()    # a container sets its nodes' sim time and fires their timers
     if kind == 'single_threaded' and len(nodes) == 1:
         rclpy.spin(node)
         return
@@ -133,8 +130,7 @@ def spin_node(node: Node, kind: str | None = None,
             executor.spin_once()
         return
     while node.context.ok() and not (stop is not None and stop()):
-        # every event of the next 0.1 s (spin_once would return to Python after each one)
-        executor.spin_until_future_complete(Future(), timeout_sec=0.1)
+        executor.spin_once(timeout_sec=0.1)
 
 
 def private_domain_id() -> int:
@@ -493,8 +489,18 @@ class LockstepDrain:
                       for node, timers, subs, *rest in per_node]
         else:
             waited = per_node
-        ws = self._fill_wait_set(waited)
-        if ws is not None:
+        only_timers = timeout_ns == 0 and not any(
+            group for _, _, *groups in waited for group in groups)
+        ws = None if only_timers else self._fill_wait_set(waited)
+        if only_timers:
+            # Nothing but timers to wait for: their ready test is the one the wait applies
+            # (rcl_timer_is_ready), so it is made here directly. A zero-timeout wait still
+            # locks the middleware's wait set and, on a loaded machine, often gave the CPU
+            # away for a millisecond or two, three times per lock-step period.
+            subs_ready = clients_ready = services_ready = set()
+            timers_ready = {tmr.handle.pointer for _, timers, *_ in waited for tmr in timers
+                            if tmr.handle.is_timer_ready()}
+        elif ws is not None:
             ws.wait(timeout_ns)
             subs_ready = set(ws.get_ready_entities('subscription'))
             timers_ready = set(ws.get_ready_entities('timer'))
