@@ -56,6 +56,22 @@ def test_fused_cable_wrench_is_bit_identical_to_reference(cfg):
     assert 0 < slack_seen < 200 * cables.n       # both taut and slack cables were exercised
 
 
+def test_length_rates_are_bit_identical_to_reference(cfg):
+    """The simulator's cable state message uses the fused geometry for dL/dt."""
+    rng = np.random.default_rng(5)
+    cables = cfg.cables
+    base_p = cfg.chain.coarse_targets(*cfg.track.pose(0.0))[0]
+    for _ in range(50):
+        p = base_p + rng.normal(0.0, 0.3, 3)
+        q = rng.normal(size=4)
+        R = _matrix(list(q / np.linalg.norm(q)))
+        lin, ang = rng.normal(0.0, 0.5, 3), rng.normal(0.0, 0.2, 3)
+        _, dirs = cables.geometry(p, R)
+        r = np.asarray(cables.attach) @ R.T
+        want = -np.einsum('ij,ij->i', lin + np.cross(ang, r), dirs)
+        assert np.array_equal(cables.length_rates(p, R, lin, ang), want)
+
+
 def test_cross_helper_matches_numpy():
     rng = np.random.default_rng(0)
     a, b = rng.normal(size=(10, 3)), rng.normal(size=(10, 3))

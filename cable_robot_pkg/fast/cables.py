@@ -103,10 +103,22 @@ class CableSystem:
                      linear_velocity: ArrayLike, angular_velocity: ArrayLike) -> np.ndarray:
         """dL/dt (n,) from the trolley twist: minus the projection of each point's velocity on
         the cable direction (the cable shortens when the point moves toward the pulleys)."""
-        r = np.asarray(self.attach) @ np.asarray(rotation).T
-        v = np.asarray(linear_velocity) + np.cross(angular_velocity, r)
-        _, dirs = self.geometry(position, rotation)
+        r, dirs, _ = self._attachments(position, rotation)
+        v = np.asarray(linear_velocity) + _cross(angular_velocity, r)
         return -np.einsum('ij,ij->i', v, dirs)
+
+    def _attachments(self, position: ArrayLike, rotation: ArrayLike
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Attachment offsets (n, 3, world axes), force directions (n, 3) and stretched
+        lengths (n,): :meth:`geometry` with the offsets kept and the masks precomputed (the
+        same arithmetic, operation for operation)."""
+        r = self.attach @ np.asarray(rotation).T
+        spans = self.anchors - (np.asarray(position) + r)[:, None, :]           # (n, k, 3)
+        span_len = np.sqrt(np.add.reduce(spans * spans, axis=2))
+        span_len = np.where(self.anchor_mask, span_len, 1.0)
+        dirs = np.where(self._mask3, spans / span_len[..., None], 0.0).sum(axis=1)
+        lengths = np.where(self.anchor_mask, span_len, 0.0).sum(axis=1)
+        return r, dirs, lengths
 
     # ----------------------------------------------------------------- forces
     def tensions(self, lengths: ArrayLike, length_rates: ArrayLike, unstretched: ArrayLike,
@@ -137,12 +149,7 @@ class CableSystem:
         padding masks precomputed; the arithmetic is the same operation for operation, so the
         results are bit-identical to calling those methods.
         """
-        r = self.attach @ np.asarray(rotation).T
-        spans = self.anchors - (np.asarray(position) + r)[:, None, :]           # (n, k, 3)
-        span_len = np.sqrt(np.add.reduce(spans * spans, axis=2))
-        span_len = np.where(self.anchor_mask, span_len, 1.0)
-        dirs = np.where(self._mask3, spans / span_len[..., None], 0.0).sum(axis=1)
-        lengths = np.where(self.anchor_mask, span_len, 0.0).sum(axis=1)
+        r, dirs, lengths = self._attachments(position, rotation)
         v = np.asarray(linear_velocity) + _cross(angular_velocity, r)
         rates = -np.einsum('ij,ij->i', v, dirs)
         t, slack = self.tensions(lengths, rates, unstretched, unstretched_rates)
