@@ -57,7 +57,8 @@ class ClockSourceNode(ParamotionNode):
               'simulator slows down from instead of running away from a late controller '
               '(< 0: never wait).', min=-1.0, max=10.0, read_only=True),
         Param('sync_timeout', 1.0, 'Free-running with sync_max_lag >= 0: wall seconds to wait '
-              'for an answer before advancing anyway (and warning once: controller gone).',
+              'for an answer before advancing anyway (warning: controller gone; it is waited for '
+              'again once it answers).',
               min=0.01, max=60.0, read_only=True),
         Param('sync_expect', [''], 'Free-running with sync_max_lag >= 0: the controllers '
               '(answer sources) expected to answer; each must have answered by sync_first_by '
@@ -92,7 +93,8 @@ class ClockSourceNode(ParamotionNode):
         self._expected = [name for name in self.params.sync_expect if name]
         self._sync_since = None       # wall time (monotonic) the current wait began
         self._said_at = 0.0           # wall time (monotonic) /clock was last published
-        self._sync_warned = False
+        #: Controllers silent for ``sync_timeout``: not waited for until they answer again.
+        self.given_up: set[str] = set()
         if not self.params.lockstep:
             self._start_free_running()
 
@@ -149,6 +151,11 @@ class ClockSourceNode(ParamotionNode):
         with ``sync_max_lag`` >= 0 a free-running source waits while an answer has been due
         for longer than the lag.
         """
+        if source in self.given_up:
+            # A controller given up on answers again: the simulator waits for it again (it
+            # catches up while the simulator holds), rather than running away from it.
+            self.given_up.discard(source)
+            self.get_logger().info(f'{source} answering again: simulator waits for it again')
         entry = self.answers.get(source)
         if entry is None:
             self.answers[source] = [stamp_ns, None, deque(maxlen=9)]
@@ -166,10 +173,11 @@ class ClockSourceNode(ParamotionNode):
         first_by = self._first_by_ns
         if first_by <= limit:
             for source in self._expected:
-                if source not in self.answers:
+                if source not in self.answers and source not in self.given_up:
                     return source
         for source, (last, interval, _) in self.answers.items():
-            if last + (first_by if interval is None else interval) <= limit:
+            if last + (first_by if interval is None else interval) <= limit and \
+                    source not in self.given_up:
                 return source
         return None
 
@@ -179,9 +187,6 @@ class ClockSourceNode(ParamotionNode):
         late = self._late_answer()
         if late is None:
             self._sync_since = None
-            if self._sync_warned:
-                self._sync_warned = False
-                self.get_logger().info('controllers answering again: simulator in sync')
             return False
         now = time.monotonic()
         if self._sync_since is None:
@@ -195,11 +200,11 @@ class ClockSourceNode(ParamotionNode):
                 self._said_at = now
                 self._clock_pub.publish(ClockMsg(clock=self.stamp()))
             return True
-        if not self._sync_warned:
-            self._sync_warned = True
-            self.get_logger().warning(
-                f'no answer from {late} for {self.params.sync_timeout:g} s of wall time: '
-                'advancing without it')
+        self.given_up.add(late)
+        self._sync_since = None
+        self.get_logger().warning(
+            f'no answer from {late} for {self.params.sync_timeout:g} s of wall time: '
+            'advancing without it until it answers again')
         return False
 
     def _free_running_tick(self) -> None:

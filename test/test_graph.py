@@ -245,7 +245,8 @@ def test_unknown_executor_is_refused():
 def test_free_running_source_waits_for_its_controllers_answers_then_times_out():
     """sync_max_lag: once a controller has answered twice (its interval known), a free-running
     clock source does not advance while that controller's next answer has been due for longer
-    than the lag; without it for sync_timeout wall seconds it advances anyway."""
+    than the lag; without it for sync_timeout wall seconds it advances anyway, and waits for
+    it again once it answers again."""
     Source = clock_source_class('sync_source')
 
     ms = 1_000_000
@@ -266,7 +267,12 @@ def test_free_running_source_waits_for_its_controllers_answers_then_times_out():
         assert src.sim_time_ns == held + 20 * ms       # one more interval, then waits again
         graph.spin_wall(2.0, until=lambda: src.sim_time_ns > held + 80 * ms)
         assert src.sim_time_ns > held + 80 * ms        # controller gone: advancing again
-        assert time.monotonic() - start > 0.5
+        assert time.monotonic() - start > 0.5 and src.given_up == {'slow'}
+        src.answered('slow', held + 20 * ms)           # back, behind: waited for again
+        assert not src.given_up
+        back = src.sim_time_ns
+        graph.spin_wall(0.2)
+        assert src.sim_time_ns == back
 
 
 def test_waiting_source_says_its_time_again_at_most_every_sync_repeat():
