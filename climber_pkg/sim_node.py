@@ -135,6 +135,21 @@ class ClimberSimNode(SimulationNode):
         self.truth_pub = self.create_publisher(PoseArray, '/climber/ground_truth', SENSOR_QOS)
         self.status_pub = self.create_publisher(DiagnosticStatus, '/climber/sim_status',
                                                 STATE_QOS)
+        # Per-step PyBullet calls bound once, and the motor targets last set (a leg's motor is
+        # set again only when its target or force changed: setting the same values again
+        # leaves the simulation as it is).
+        self._step = self.bullet_function('stepSimulation')
+        self._motors = [self.bullet_function('setJointMotorControl2', leg, 0,
+                                             b.POSITION_CONTROL) for leg in self.legs]
+        self._joint_state = [self.bullet_function('getJointState', leg, 0)
+                             for leg in self.legs]
+        self._ring_pose = [self.bullet_function('getBasePositionAndOrientation', ring)
+                           for ring in self.rings]
+        self._motor_set = None
+        # One message object per topic, refilled every period (publishing serialises it).
+        self._joints_msg = JointState(name=list(LEG_NAMES))
+        self._truth_msg = PoseArray(poses=[Pose(), Pose()])
+        self._truth_msg.header.frame_id = 'map'
 
     # ------------------------------------------------------------------ world building
     def _build_trunk(self):
@@ -265,53 +280,49 @@ class ClimberSimNode(SimulationNode):
 
     # ------------------------------------------------------------------ simulation
     def step_physics(self, dt):
-        b = self.bullet
         for ring in (0, 1):
             due = self._closing_at[ring]
             if due is not None and self.sim_time >= due - 1e-9:
                 self._closing_at[ring] = None
                 self._make_clamp(ring)
-        target = self._commanded(self.sim_time)
-        for leg, q in zip(self.legs, target):
-            b.setJointMotorControl2(leg, 0, b.POSITION_CONTROL, targetPosition=float(q),
-                                    force=self.params.leg_force, positionGain=0.3,
-                                    velocityGain=1.0, maxVelocity=1.0)
-        b.stepSimulation()
+        target = self._commanded(self.sim_time).tolist()
+        force = self.params.leg_force
+        if self._motor_set != (target, force):
+            self._motor_set = (target, force)
+            for motor, q in zip(self._motors, target):
+                motor(targetPosition=q, force=force, positionGain=0.3, velocityGain=1.0,
+                      maxVelocity=1.0)
+        self._step()
 
     def leg_lengths(self):
-        return np.array([self.bullet.getJointState(leg, 0)[0] for leg in self.legs])
+        return np.array([state()[0] for state in self._joint_state])
 
     def ring_poses(self):
         """True ring poses [(position, rotation)] in map."""
         out = []
-        for body in self.rings:
-            pos, orn = self.bullet.getBasePositionAndOrientation(body)
+        for pose in self._ring_pose:
+            pos, orn = pose()
             out.append((np.array(pos), matrix_from_quat(orn)))
         return out
 
     def publish_state(self):
         b = self.bullet
         stamp = self.stamp()
-        states = [b.getJointState(leg, 0) for leg in self.legs]
-        js = JointState()
+        states = [state() for state in self._joint_state]
+        js = self._joints_msg
         js.header.stamp = stamp
-        js.name = list(LEG_NAMES)
-        js.position = [float(s[0]) for s in states]
-        js.velocity = [float(s[1]) for s in states]
-        js.effort = [float(s[3]) for s in states]
+        js.position = [s[0] for s in states]
+        js.velocity = [s[1] for s in states]
+        js.effort = [s[3] for s in states]
         self.joint_pub.publish(js)
         for ring in (0, 1):
             self.clamp_pubs[ring].publish(Bool(data=bool(self.clamp_closed[ring])))
-        pa = PoseArray()
+        pa = self._truth_msg
         pa.header.stamp = stamp
-        pa.header.frame_id = 'map'
-        for pos, rot in self.ring_poses():
-            pose = Pose()
-            pose.position.x, pose.position.y, pose.position.z = (float(v) for v in pos)
-            x, y, z, w = quat_from_matrix(rot)
-            pose.orientation.x, pose.orientation.y = x, y
-            pose.orientation.z, pose.orientation.w = z, w
-            pa.poses.append(pose)
+        for pose, (pos, rot) in zip(pa.poses, self.ring_poses()):
+            p, o = pose.position, pose.orientation
+            p.x, p.y, p.z = pos.tolist()
+            o.x, o.y, o.z, o.w = quat_from_matrix(rot)
         self.truth_pub.publish(pa)
         contacts = 0
         for ring in self.rings:

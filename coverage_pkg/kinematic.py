@@ -20,7 +20,7 @@ import shapely
 from coverage_pkg.algorithm1 import Command, PaperConfig, PaperPlanner
 from coverage_pkg.cvs import CoverableSet, CoverageAccumulator
 from coverage_pkg.planner import CoveragePlanner, PlannerConfig
-from coverage_pkg.sonar import SonarRing, simulate_ring
+from coverage_pkg.sonar import RingCaster, SonarRing
 
 if TYPE_CHECKING:
     from coverage_pkg.world import World
@@ -50,6 +50,7 @@ def run_kinematic(world: World, config: PaperConfig | PlannerConfig | None = Non
     planner = cls(cfg, ring.mount_angles(), ring.beam_width, ring.min_range, ring.max_range,
                   ring.noise_std)
     rng = np.random.default_rng(seed)
+    sonar = RingCaster(world, ring)          # simulate_ring, with the world's segments ready
     cvs = CoverableSet(world, cfg.radius, cfg.detector_range(), cvs_resolution)
     acc = CoverageAccumulator(cvs)
     x, y = map(float, world.start)
@@ -68,7 +69,7 @@ def run_kinematic(world: World, config: PaperConfig | PlannerConfig | None = Non
         if t >= next_sweep - 1e-9:
             next_sweep += sweep_period
             if dropout is None or not dropout(t):
-                ranges = simulate_ring(world, (x, y, yaw), ring, rng)
+                ranges = sonar((x, y, yaw), rng)
                 if corrupt is not None:
                     ranges = corrupt(t, ranges)
                 a = clock()

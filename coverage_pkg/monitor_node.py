@@ -47,6 +47,8 @@ class CoverageMonitorNode(ParamotionNode):
         self.cvs = CoverableSet(self.world, p.radius, p.delta, p.resolution)
         self.acc = CoverageAccumulator(self.cvs)
         self.path = []
+        # The grid's cells outside the seen set: -1 outside CVS, 0 in it (the mask is fixed).
+        self._unseen = np.where(self.cvs.mask, 0, -1).astype(np.int8)
         self.create_subscription(Odometry, '/coverage/ground_truth', self._on_truth, SENSOR_QOS)
         self.grid_pub = self.create_publisher(OccupancyGrid, '/coverage/seen', LATCHED_QOS)
         self.fraction_pub = self.create_publisher(Float64, '/coverage/covered_fraction',
@@ -76,8 +78,7 @@ class CoverageMonitorNode(ParamotionNode):
         grid.info.origin.position.x = float(cvs.origin[0])
         grid.info.origin.position.y = float(cvs.origin[1])
         grid.info.origin.orientation.w = 1.0
-        data = np.full(cvs.mask.shape, -1, dtype=np.int8)
-        data[cvs.mask] = 0
+        data = self._unseen.copy()
         data[self.acc.seen] = 100
         grid.data = array.array('b', data.tobytes())
         self.grid_pub.publish(grid)

@@ -72,9 +72,19 @@ class CoverageSimNode(SimulationNode):
         self.command_time = None
         self.path_length = 0.0
         self._last_xy = (sx, sy)
+        # The per-step PyBullet calls, bound once.
+        self._get_pose = self.bullet_function('getBasePositionAndOrientation', self.robot)
+        self._get_velocity = self.bullet_function('getBaseVelocity', self.robot)
+        self._euler = self.bullet_function('getEulerFromQuaternion')
+        self._set_velocity = self.bullet_function('resetBaseVelocity', self.robot)
+        self._set_pose = self.bullet_function('resetBasePositionAndOrientation', self.robot)
+        self._step = self.bullet_function('stepSimulation')
         self.create_subscription(Twist, 'cmd_vel', self._on_cmd, STATE_QOS)
         self.odom_pub = self.create_publisher(Odometry, 'odom', SENSOR_QOS)
         self.truth_pub = self.create_publisher(Odometry, '/coverage/ground_truth', SENSOR_QOS)
+        # One message object per topic, refilled every period (publishing serialises it).
+        self._truth_msg = self._new_odometry('map', 'base_link')
+        self._odom_msg = self._new_odometry('odom', 'base_link')
 
     def _on_cmd(self, msg):
         vals = (msg.linear.x, msg.linear.y, msg.angular.z)
@@ -90,53 +100,59 @@ class CoverageSimNode(SimulationNode):
 
     def pose(self):
         """True (x, y, yaw) of the robot in the map frame."""
-        pos, orn = self.bullet.getBasePositionAndOrientation(self.robot)
-        yaw = self.bullet.getEulerFromQuaternion(orn)[2]
-        return float(pos[0]), float(pos[1]), float(yaw)
+        pos, orn = self._get_pose()
+        return float(pos[0]), float(pos[1]), float(self._euler(orn)[2])
 
     def step_physics(self, dt):
-        b = self.bullet
         x, y, yaw = self.pose()
         vx, vy, wz = self.command
         if self.command_time is None or self.sim_time - self.command_time > \
                 self.params.cmd_timeout:
             vx = vy = wz = 0.0
         c, s = math.cos(yaw), math.sin(yaw)
-        b.resetBaseVelocity(self.robot, [c * vx - s * vy, s * vx + c * vy, 0.0], [0.0, 0.0, wz])
-        b.stepSimulation()
+        self._set_velocity([c * vx - s * vy, s * vx + c * vy, 0.0], [0.0, 0.0, wz])
+        self._step()
         # Keep the robot planar (contacts may tilt or lift it slightly).
         x, y, yaw = self.pose()
-        b.resetBasePositionAndOrientation(self.robot, [x, y, WALL_HEIGHT / 2],
-                                          quat_from_yaw(yaw))
+        self._set_pose([x, y, WALL_HEIGHT / 2], quat_from_yaw(yaw))
         self.path_length += math.hypot(x - self._last_xy[0], y - self._last_xy[1])
         self._last_xy = (x, y)
 
-    def _odometry(self, frame, child, x, y, yaw):
+    @staticmethod
+    def _new_odometry(frame, child):
         msg = Odometry()
-        msg.header.stamp = self.stamp()
         msg.header.frame_id = frame
         msg.child_frame_id = child
-        msg.pose.pose.position.x = x
-        msg.pose.pose.position.y = y
-        q = quat_from_yaw(yaw)
+        return msg
+
+    @staticmethod
+    def _fill_odometry(msg, stamp, x, y, yaw, lin, ang):
+        """Header stamp, planar pose and body-frame velocity of ``msg`` (the only fields that
+        change; the frames are set once)."""
+        msg.header.stamp = stamp
+        position = msg.pose.pose.position
+        position.x = x
+        position.y = y
         o = msg.pose.pose.orientation
-        o.x, o.y, o.z, o.w = q
-        lin, ang = self.bullet.getBaseVelocity(self.robot)
+        o.x, o.y, o.z, o.w = quat_from_yaw(yaw)
         c, s = math.cos(yaw), math.sin(yaw)
-        msg.twist.twist.linear.x = c * lin[0] + s * lin[1]
-        msg.twist.twist.linear.y = -s * lin[0] + c * lin[1]
-        msg.twist.twist.angular.z = ang[2]
+        twist = msg.twist.twist
+        twist.linear.x = c * lin[0] + s * lin[1]
+        twist.linear.y = -s * lin[0] + c * lin[1]
+        twist.angular.z = ang[2]
         return msg
 
     def publish_state(self):
         x, y, yaw = self.pose()
-        self.truth_pub.publish(self._odometry('map', 'base_link', x, y, yaw))
+        stamp = self.stamp()
+        lin, ang = self._get_velocity()
+        self.truth_pub.publish(self._fill_odometry(self._truth_msg, stamp, x, y, yaw, lin, ang))
         # Odometry in the odom frame = start pose; perfect wheel odometry of the glide model.
         sx, sy, syaw = self.start
         c, s = math.cos(-syaw), math.sin(-syaw)
         ox, oy = c * (x - sx) - s * (y - sy), s * (x - sx) + c * (y - sy)
-        self.odom_pub.publish(self._odometry('odom', 'base_link', ox, oy,
-                                             math.remainder(yaw - syaw, 2 * math.pi)))
+        self.odom_pub.publish(self._fill_odometry(
+            self._odom_msg, stamp, ox, oy, math.remainder(yaw - syaw, 2 * math.pi), lin, ang))
 
 
 def main(args=None):

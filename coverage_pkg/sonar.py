@@ -74,22 +74,60 @@ def simulate_ring(world: World, pose: ArrayLike, ring: SonarRing,
 
     Each cone is sampled by ``rays_per_beam`` exact ray casts; the reading is the nearest hit
     (the first echo) plus Gaussian noise, mapped to REP 117 (+inf beyond ``max_range``, -inf
-    below ``min_range``).
+    below ``min_range``). A simulator sweeping many times builds one :class:`RingCaster`.
     """
-    x, y, yaw = pose
-    offs = np.linspace(-0.5, 0.5, ring.rays_per_beam) * ring.beam_width
-    angles = yaw + ring.mount_angles()[:, None] + offs[None, :]
-    far = ring.max_range * 2.0
-    true = world.raycast((x, y), angles, far).min(axis=1)
-    out = true.copy()
-    if rng is not None and ring.noise_std > 0.0:
-        out = out + rng.normal(0.0, ring.noise_std, out.shape)
-    # REP 117 as in paramotion.range_sensing.rep117_reading: the true distance decides
-    # +inf / -inf, a valid noisy value is clipped into [min_range, max_range].
-    out = np.clip(out, ring.min_range, ring.max_range)
-    out[true > ring.max_range] = math.inf
-    out[true < ring.min_range] = -math.inf
-    return out
+    return RingCaster(world, ring)(pose, rng)
+
+
+class RingCaster:
+    """:func:`simulate_ring` for one world and one ring, with what does not change between
+    sweeps computed once: the segments' direction vectors, the transducers' mount angles and
+    the ray offsets across a cone. Every sweep then takes the same floating-point steps as
+    :func:`coverage_pkg.world.raycast_segments` (the readings are equal bit for bit:
+    ``test/test_sonar_caster.py``)."""
+
+    def __init__(self, world: World, ring: SonarRing) -> None:
+        self.ring = ring
+        seg = np.asarray(world.segments, dtype=float)
+        self._start = seg[:, :2]
+        edge = seg[:, 2:] - seg[:, :2]
+        self._ex, self._ey = edge[:, 0].copy(), edge[:, 1].copy()
+        self._mount = ring.mount_angles()[:, None]
+        self._offs = (np.linspace(-0.5, 0.5, ring.rays_per_beam) * ring.beam_width)[None, :]
+        self._far = ring.max_range * 2.0
+
+    def true_ranges(self, pose: ArrayLike) -> np.ndarray:
+        """Noise-free nearest hit of each cone (capped at twice ``max_range``)."""
+        x, y, yaw = pose
+        angles = (yaw + self._mount + self._offs).ravel()
+        cos, sin = np.cos(angles)[:, None], np.sin(angles)[:, None]
+        ex, ey = self._ex, self._ey
+        a = self._start - np.asarray((x, y), dtype=float)
+        ax, ay = a[:, 0], a[:, 1]
+        # p + t d = s1 + u e  ->  t = cross(a, e) / cross(d, e), u = cross(a, d) / cross(d, e)
+        den = cos * ey - sin * ex                                            # (rays, k)
+        num_t = ax * ey - ay * ex
+        num_u = ax * sin - ay * cos
+        with np.errstate(divide='ignore', invalid='ignore'):
+            t = num_t / den
+            u = num_u / den
+        ok = (np.abs(den) > 1e-12) & (t >= 0.0) & (u >= -1e-9) & (u <= 1.0 + 1e-9)
+        hits = np.minimum(np.where(ok, t, np.inf).min(axis=1), self._far)
+        return hits.reshape(self._mount.shape[0], -1).min(axis=1)
+
+    def __call__(self, pose: ArrayLike, rng: np.random.Generator | None = None) -> np.ndarray:
+        """The REP 117 readings of one sweep at ``pose`` (noise drawn from ``rng``)."""
+        ring = self.ring
+        true = self.true_ranges(pose)
+        out = true.copy()
+        if rng is not None and ring.noise_std > 0.0:
+            out = out + rng.normal(0.0, ring.noise_std, out.shape)
+        # REP 117 as in paramotion.range_sensing.rep117_reading: the true distance decides
+        # +inf / -inf, a valid noisy value is clipped into [min_range, max_range].
+        out = np.clip(out, ring.min_range, ring.max_range)
+        out[true > ring.max_range] = math.inf
+        out[true < ring.min_range] = -math.inf
+        return out
 
 
 def yaw_of(q: _Quaternion) -> float:

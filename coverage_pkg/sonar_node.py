@@ -2,7 +2,8 @@
 
 A simulated sensor: its inputs are the world file and the true pose
 (``/coverage/ground_truth``). Every ``1/rate`` s of sim time it ray-casts each transducer's cone
-(:func:`coverage_pkg.sonar.simulate_ring`) and publishes
+(:func:`coverage_pkg.sonar.simulate_ring`, by a :class:`coverage_pkg.sonar.RingCaster` built
+once per ring geometry) and publishes
 
 * ``sonar/ranges``: one sensor_msgs/Range per transducer, all with the sweep's stamp, frame
   ``sonar_<k>`` (transducer k points at ``2 pi k / count`` rad from the robot's +x axis),
@@ -21,7 +22,7 @@ from nav_msgs.msg import Odometry
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import LaserScan, Range
 
-from coverage_pkg.sonar import SonarRing, simulate_ring, yaw_of
+from coverage_pkg.sonar import RingCaster, SonarRing, yaw_of
 from coverage_pkg.world import load_world_param
 from paramotion.messages import range_msg
 from paramotion.node import Param, ParamotionNode, run_node
@@ -67,6 +68,8 @@ class CoverageSonarNode(ParamotionNode):
         self.rng = np.random.default_rng(self.params.seed)
         self.pose = None
         self.sweeps = 0
+        self._caster = None
+        self._scan = None
         self.create_subscription(Odometry, '/coverage/ground_truth', self._on_truth, SENSOR_QOS)
         self.range_pub = self.create_publisher(Range, 'sonar/ranges', SONAR_QOS)
         self.scan_pub = self.create_publisher(LaserScan, 'sonar/scan', SENSOR_QOS)
@@ -84,6 +87,13 @@ class CoverageSonarNode(ParamotionNode):
                          max_range=p.max_range, noise_std=p.noise_std,
                          rays_per_beam=p.rays_per_beam)
 
+    def caster(self):
+        """The ray caster of the current ring parameters (rebuilt when one of them changed)."""
+        ring = self.ring()
+        if self._caster is None or self._caster.ring != ring:
+            self._caster = RingCaster(self.world, ring)
+        return self._caster
+
     def _on_truth(self, msg):
         q = msg.pose.pose.orientation
         self.pose = (msg.pose.pose.position.x, msg.pose.pose.position.y, yaw_of(q))
@@ -95,8 +105,7 @@ class CoverageSonarNode(ParamotionNode):
         p = self.params
         now = self.get_clock().now()
         t = now.nanoseconds * 1e-9
-        ring = self.ring()
-        ranges = simulate_ring(self.world, self.pose, ring, self.rng)
+        ranges = self.caster()(self.pose, self.rng)
         faults = self.rng.random(len(ranges)) < p.fault_probability
         drop = self.rng.random() < p.dropout_probability
         ranges[faults] = math.nan
@@ -111,16 +120,18 @@ class CoverageSonarNode(ParamotionNode):
         for k, value in enumerate(ranges if per_transducer else []):
             self.range_pub.publish(range_msg(stamp, f'sonar_{k}', value, p.min_range,
                                              p.max_range, p.beam_width))
-        scan = LaserScan()
+        scan = self._scan
+        if scan is None:          # one message, refilled every sweep (publishing serialises it)
+            scan = self._scan = LaserScan()
+            scan.header.frame_id = 'base_link'
+            scan.angle_min = 0.0
+            scan.angle_increment = 2.0 * math.pi / p.count
+            scan.angle_max = scan.angle_increment * (p.count - 1)
+            scan.scan_time = 1.0 / p.rate
         scan.header.stamp = stamp
-        scan.header.frame_id = 'base_link'
-        scan.angle_min = 0.0
-        scan.angle_increment = 2.0 * math.pi / p.count
-        scan.angle_max = scan.angle_increment * (p.count - 1)
-        scan.scan_time = 1.0 / p.rate
         scan.range_min = float(p.min_range)
         scan.range_max = float(p.max_range)
-        scan.ranges = [float(v) for v in ranges]
+        scan.ranges = ranges.tolist()
         self.scan_pub.publish(scan)
         self.sweeps += 1
 

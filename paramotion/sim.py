@@ -8,9 +8,10 @@ then publishes ``/clock`` and its state (:meth:`publish_state`).
 from __future__ import annotations
 
 import ctypes
+import functools
 import os
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any
 
@@ -62,6 +63,14 @@ class SimulationNode(ClockSourceNode):
         self.bullet.setGravity(0.0, 0.0, self.params.gravity)
         self.bullet.setTimeStep(self.params.physics_dt)
         self.substeps = max(1, int(round(self.params.publish_period / self.params.physics_dt)))
+
+    def bullet_function(self, name: str, *args: Any) -> Callable[..., Any]:
+        """The PyBullet function ``name`` bound to this node's client and to the leading
+        ``args``, looked up once. ``self.bullet.<name>`` looks the name up and wraps it in a
+        new partial on every access, which a simulator's per-step calls pay each time."""
+        import pybullet
+        return functools.partial(getattr(pybullet, name), *args,
+                                 physicsClientId=self.bullet._client)
 
     def check_params(self, values: dict[str, Any]) -> str | None:
         """The clock rules, and ``publish_period`` a whole number of physics steps."""
