@@ -34,7 +34,11 @@ def reference_cable_wrench(cables, position, rotation, linear_velocity, angular_
     return f_i.sum(axis=0), np.cross(r, f_i).sum(axis=0), t, lengths, slack
 
 
-def test_fused_cable_wrench_is_bit_identical_to_reference(cfg):
+@pytest.mark.parametrize('backend', ['numba', 'numpy'])
+def test_fused_cable_wrench_is_bit_identical_to_reference(cfg, backend, monkeypatch):
+    """Both the compiled kernel (cable_kernel.py) and the numpy path."""
+    pytest.importorskip(backend)
+    monkeypatch.setenv('PARAMOTION_BACKEND', backend)
     rng = np.random.default_rng(3)
     cables = cfg.cables
     base_p = cfg.chain.coarse_targets(*cfg.track.pose(0.0))[0]

@@ -22,12 +22,15 @@ then ``L0 = EA L / (EA + T)``.
 """
 from __future__ import annotations
 
+import os
 from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
 from scipy.optimize import lsq_linear
+
+from paramotion.backend import resolve_backend
 
 
 @dataclass(frozen=True)
@@ -147,8 +150,27 @@ class CableSystem:
         This runs every physics step, so it is :meth:`geometry`, :meth:`length_rates` and
         :meth:`tensions` fused into one pass with the attachment offsets computed once and the
         padding masks precomputed; the arithmetic is the same operation for operation, so the
-        results are bit-identical to calling those methods.
+        results are bit-identical to calling those methods. With numba installed the pass is
+        the compiled :func:`cable_robot_pkg.fast.cable_kernel.cable_wrench` (same arithmetic
+        in the same order, bit-identical; ``PARAMOTION_BACKEND=numpy`` keeps numpy).
         """
+        kernel = _wrench_kernel()
+        if kernel is not None:
+            r = self.attach @ np.asarray(rotation).T
+            n = self.n
+            out = (np.empty(3), np.empty(3), np.empty(n), np.empty(n), np.empty(n, bool))
+            kernel(r, self.anchors, self.anchor_mask, np.asarray(position, float),
+                   np.asarray(linear_velocity, float), np.asarray(angular_velocity, float),
+                   np.asarray(unstretched, float),
+                   np.broadcast_to(np.asarray(unstretched_rates, float), (n,)),
+                   self.EA, self.damping, *out)
+            return out
+        return self._wrench_numpy(position, rotation, linear_velocity, angular_velocity,
+                                  unstretched, unstretched_rates)
+
+    def _wrench_numpy(self, position, rotation, linear_velocity, angular_velocity, unstretched,
+                      unstretched_rates):
+        """:meth:`wrench` in numpy (the fallback without numba, and its reference)."""
         r, dirs, lengths = self._attachments(position, rotation)
         v = np.asarray(linear_velocity) + _cross(angular_velocity, r)
         rates = -np.einsum('ij,ij->i', v, dirs)
@@ -208,6 +230,22 @@ class CableSystem:
         t = self.tension_distribution(position, rotation, load_wrench, t_min, t_max)
         lengths = self.lengths(position, rotation)
         return self.unstretched_for(lengths, t), lengths, t
+
+
+#: (PARAMOTION_BACKEND value, kernel or None) last resolved by :func:`_wrench_kernel`.
+_KERNEL: list = [object(), None]
+
+
+def _wrench_kernel():
+    """The compiled wrench kernel, or None for numpy (resolved again when
+    ``PARAMOTION_BACKEND`` changes)."""
+    env = os.environ.get('PARAMOTION_BACKEND')
+    if _KERNEL[0] != env:
+        kernel = None
+        if resolve_backend() == 'numba':
+            from cable_robot_pkg.fast.cable_kernel import cable_wrench as kernel
+        _KERNEL[:] = [env, kernel]
+    return _KERNEL[1]
 
 
 def _cross(a, b):
