@@ -275,6 +275,8 @@ class PaperPlanner:
         self._cusp_dir = None                      # bearing into the narrow cell, this cusp
         self._cusp_dirs = {}                       # cusp (x, y) of an edge -> that bearing
         self._on_gvd = False                       # this transit step follows a GVD edge
+        self.gvd_trace = {}                        # points of traced GVD edges, by 1 m bucket
+        self._gvd_last = None
 
     # ------------------------------------------------------------------ inputs
 
@@ -308,6 +310,13 @@ class PaperPlanner:
         self.mins = gvdmod.ring_minima(rr, self.angles)
         prev, self.D = self.D, float(np.nanmin(r))
         self.paths.add(self.pose[0], self.pose[1], self.D)
+        if self.mode == 'gvd' and (self._gvd_last is None or
+                                   math.dist(self._gvd_last, self.pose[:2]) > 0.2):
+            head = self.task.get('heading') or (0.0, 0.0)
+            self._gvd_last = self.pose[:2]
+            key = (int(self.pose[0] // 1.0), int(self.pose[1] // 1.0))
+            self.gvd_trace.setdefault(key, []).append((*self.pose[:2], self.sweeps,
+                                                       float(head[0]), float(head[1])))
         if t - self.t_first_sweep >= self.cfg.warmup and self.mode in ('lap', 'boundary',
                                                                       'gvd'):
             self._sense_cusp(t, prev)
@@ -328,15 +337,19 @@ class PaperPlanner:
     # ------------------------------------------------------------------ event sensing
 
     def _sense_cusp(self, t, prev):
-        """Cusp point (Section V-B): D crosses delta on the GVD (Fig. 11), or at D = delta the
-        closest obstacle jumps to another one (Fig. 10); placed where both are at delta."""
+        """Cusp point (Section V-B): D crosses delta on the GVD (Fig. 11), or, while following
+        a boundary at D = delta, the closest obstacle jumps to another one (Fig. 10; on a GVD
+        edge the closest obstacle alternates between the two equidistant ones, which is no
+        cusp); placed where both are at delta. On a GVD edge, D must cross delta + 0.015 m:
+        between walls about 2 delta apart, echo noise makes D cross delta back and forth."""
         xy = None
-        if math.isfinite(prev) and (prev <= self.det) != (self.D <= self.det):
+        level = self.det + (0.015 if self.mode == 'gvd' else 0.0)
+        if math.isfinite(prev) and (prev <= level) != (self.D <= level):
             xy = gvdmod.cusp_from_ring(self.pose[:2], self.ranges, self.angles, self.det)
         bearing = self.mins[0][1] if self.mins else None
         last, self._near_bearing = self._near_bearing, bearing
-        if xy is None and last is not None and bearing is not None and \
-                abs(self.D - self.det) < 0.3 and \
+        if xy is None and self.mode == 'boundary' and last is not None and \
+                bearing is not None and abs(self.D - self.det) < 0.3 and \
                 abs(math.remainder(bearing - last, 2 * math.pi)) > math.radians(45):
             xy = gvdmod.cusp_from_ring(self.pose[:2], self.ranges, self.angles, self.det)
         if xy is not None:
@@ -518,7 +531,14 @@ class PaperPlanner:
             self._cusp_dirs[(round(float(xy[0]), 3), round(float(xy[1]), 3))] = self._cusp_dir
 
     def find_uncovered_node(self) -> Node | None:
-        """FindUncoveredNode(N): the uncovered node nearest along the traced paths."""
+        """FindUncoveredNode(N): the uncovered node nearest along the traced paths. A narrow
+        node all of whose open branches run along GVD edges already traced is covered."""
+        for n in self.nodes:
+            if not n.covered and n.kind == 'narrow' and n.branches and \
+                    not self._open_branches(n):
+                n.covered = True
+                n.closed_by = self._record(self.t_sweep or 0.0, 'node_covered', n.anchor,
+                                           f'narrow node {n.id}: its GVD edges are traced')
         cands = [n for n in self.nodes if not n.covered]
         if not cands:
             return None
@@ -910,7 +930,7 @@ class PaperPlanner:
         point, a dead end or a known meet point; meet points add branches."""
         br = self.task.get('branch')
         if br is None:
-            open_ = [b for b in n.branches if b.end is None]
+            open_ = self._open_branches(n)
             if not open_:
                 n.covered = True
                 return None
@@ -957,12 +977,46 @@ class PaperPlanner:
             return self._cusp_ahead(tang)         # Fig. 11: D rose above delta
         if self.task['far'] > 3.0 and math.dist(origin, self.pose[:2]) < 0.5:
             return self._end_branch('loop')
+        start = self.task.setdefault('sweep0', self.sweeps)
+        if self.task['far'] > 1.0 and self._near_trace(self.pose[:2], 0.35, start, tang) and \
+                self._near_trace(self.pose[:2] - 0.6 * tang, 0.35, start, tang):
+            return self._end_branch('traced')     # on a GVD edge traced before: joined it
         for m in n.meets:
             if math.dist(m[:2], self.pose[:2]) < 0.5 and \
                     math.dist(m[:2], br.start) > 0.7 and m[2] != self.task.get('meet'):
                 return self._end_branch('meet')
         corr = diff / np.linalg.norm(diff) * (d1 - d2) * 2.0
         return tang * self.cfg.max_speed + corr
+
+    def _open_branches(self, n):
+        """The untraced branches of narrow node ``n``. A branch whose GVD edge the robot has
+        traced already (0.8, 1.6 and 2.4 m out along its heading all lie within 0.4 m of a
+        traced GVD edge: an edge reached from its other end, or from another meet point
+        sensed on it) is that edge: it ends 'traced' and is not traced again."""
+        out = []
+        for b in n.branches:
+            if b.end is None and b.heading is not None and self._edge_traced(b.start,
+                                                                             b.heading):
+                b.end, b.end_xy = 'traced', tuple(b.start)
+                self._record(self.t_sweep or 0.0, 'branch_end', b.start,
+                             'GVD branch ends: its edge is traced already')
+            if b.end is None:
+                out.append(b)
+        return out
+
+    def _edge_traced(self, start, heading):
+        return all(self._near_trace((start[0] + s * heading[0], start[1] + s * heading[1]),
+                                    0.4) for s in (0.8, 1.6, 2.4))
+
+    def _near_trace(self, q, within, before=None, along=None):
+        """A point of a traced GVD edge lies within ``within`` of ``q`` (traced before sweep
+        ``before``, and along the direction ``along`` or against it within 30 degrees, if
+        given: the same edge, not one that crosses it)."""
+        bx, by = int(q[0] // 1.0), int(q[1] // 1.0)
+        return any(math.dist(p[:2], q) < within and (before is None or p[2] < before) and
+                   (along is None or abs(p[3] * along[0] + p[4] * along[1]) > 0.87)
+                   for gx in (bx - 1, bx, bx + 1) for gy in (by - 1, by, by + 1)
+                   for p in self.gvd_trace.get((gx, gy), ()))
 
     def _cusp_ahead(self, heading):
         """D has risen above delta on the GVD edge (Fig. 11): the robot has just passed its
@@ -1167,13 +1221,43 @@ class PaperPlanner:
         tk['back'] = back                     # closest pass by the start counts as back
         if (tk['length'] > 3.0 and back < 0.4) or passed or tk['length'] > 500.0:
             circ['done'] = True
+            sliver = self._sliver_tips(circ['trace'])
             self._same_cell(n, circ['trace'])
             self._beyond(n, circ)
             if not n.cells:
                 n.cells.append(MorseCell(0, self.pose[:2], +1, opened_by=circ['opened_by']))
+                if sliver:        # narrower than a lap: the circuit has swept it (one lap)
+                    self._close_cell(n, n.cells[0], None, 'the circuit encloses no area: '
+                                     'the cell is narrower than one lap and swept by it')
             self.task, self.mode = {}, None
             return None
         return self._follow_velocity()
+
+    def _sliver_tips(self, trace):
+        """A circuit that encloses no area (mean width 2 A / length < 0.3 m) has followed the
+        GVD itself: the vast cell is a sliver between walls about 2 delta apart (against the
+        paper's assumption of Section IV-B). Its two tips are where D falls to delta on the
+        GVD, i.e. cusp points by the paper's definition, which the Fig. 10 test does not
+        place at a turn-around; each is sensed here, its bearing out along the sliver."""
+        if len(trace) < 4:
+            return False
+        q = np.asarray(trace, dtype=float)
+        x, y = q[:, 0], q[:, 1]
+        area = 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+        length = float(np.hypot(*np.diff(np.vstack([q, q[:1]]), axis=0).T).sum())
+        if length < 2.0 or 2.0 * area / length >= 0.3:
+            return False
+        if 'cusp' in self.cfg.without:
+            return True
+        mid = q.mean(axis=0)
+        axis = np.linalg.svd(q - mid)[2][0]
+        proj = (q - mid) @ axis
+        for tip, out in ((q[int(np.argmin(proj))], -axis), (q[int(np.argmax(proj))], axis)):
+            self._cusp_dir = math.atan2(out[1], out[0])
+            self._on_event(self.t_sweep, 'cusp', tuple(tip), 'tip of a vast cell that is a '
+                           'sliver along the GVD (D = delta on the GVD)')
+        self._cusp_dir = None
+        return True
 
     def _towards(self, xy, speed):
         d = np.array(xy) - np.array(self.pose[:2])

@@ -4,7 +4,8 @@
 worlds of :mod:`coverage_pkg.worldgen` for the seeds, covers each with the paper planner
 (:mod:`coverage_pkg.algorithm1`) in :func:`coverage_pkg.kinematic.run_kinematic`, and prints
 per world and overall: the covered share of CVS, path / lower bound |CVS| / (2 delta), the
-share of the path driven by lap, boundary and GVD primitives (not transit), and the planner
+share of the path driven by lap, boundary and GVD primitives (not transit), each primitive's
+path as a multiple of the lower bound (where the path goes), and the planner
 update time per sweep (median and 99th percentile of the CPU time of the planner's thread,
 ``time.thread_time``, so that other jobs on a shared machine do not count). ``--png`` draws
 each run.
@@ -22,6 +23,8 @@ import numpy as np
 
 from coverage_pkg.algorithm1 import PaperConfig
 
+PRIMITIVES = ('lap', 'boundary', 'gvd', 'transit')
+
 
 def parse_seeds(text: str) -> list[int]:
     """Seeds from '100-105' or '100,103,200-202'."""
@@ -32,15 +35,28 @@ def parse_seeds(text: str) -> list[int]:
     return out
 
 
-def measure_world(seed: int, png_dir: str | None = None,
-                  max_time: float = 3000.0) -> dict[str, object]:
+def parse_config(items: list[str]) -> dict[str, object]:
+    """PaperConfig fields from 'name=value' strings (typed like the field's default)."""
+    base, out = PaperConfig(), {}
+    for item in items:
+        name, sep, value = item.partition('=')
+        if not sep or not hasattr(base, name):
+            raise SystemExit(f'--set "{item}" must be NAME=VALUE with a PaperConfig field NAME')
+        kind = type(getattr(base, name))
+        out[name] = tuple(v for v in value.split(',') if v) if kind is tuple else kind(value)
+    return out
+
+
+def measure_world(seed: int, png_dir: str | None = None, max_time: float = 3000.0,
+                  config: dict[str, object] | None = None) -> dict[str, object]:
     """One generated world covered by the paper planner; the measured figures."""
     from coverage_pkg.kinematic import run_kinematic
     from coverage_pkg.world import load_world
     from coverage_pkg.worldgen import write_worlds
     with tempfile.TemporaryDirectory() as tmp:
         world = load_world(write_worlds(tmp, 1, seed=seed)[0])
-    r = run_kinematic(world, PaperConfig(), max_time=max_time, clock=time.thread_time)
+    r = run_kinematic(world, PaperConfig(**(config or {})), max_time=max_time,
+                      clock=time.thread_time)
     planner = r['planner']
     lengths = planner.primitive_lengths()
     total = sum(lengths.values())
@@ -49,7 +65,9 @@ def measure_world(seed: int, png_dir: str | None = None,
            'ratio': r['path_length'] / r['lower_bound'],
            'primitive': 1.0 - lengths.get('transit', 0.0) / total if total else 0.0,
            'median_ms': float(np.median(ut)), 'p99_ms': float(np.percentile(ut, 99)),
-           'sim': r['sim_time'], 'wall': r['wall_time']}
+           'sim': r['sim_time'], 'wall': r['wall_time'],
+           'per_bound': {k: lengths.get(k, 0.0) / r['lower_bound'] * (
+               r['path_length'] / total if total else 0.0) for k in PRIMITIVES}}
     if png_dir:
         from coverage_pkg.figure import render_coverage
         Path(png_dir).mkdir(parents=True, exist_ok=True)
@@ -65,22 +83,27 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument('--jobs', type=int, default=1, help='worlds run in parallel')
     ap.add_argument('--png', default=None, help='directory for one picture per world')
     ap.add_argument('--max-sim-time', type=float, default=3000.0)
+    ap.add_argument('--set', action='append', default=[], metavar='NAME=VALUE',
+                    help="a PaperConfig field, e.g. 'transit_joins=union' (repeatable)")
     args = ap.parse_args(argv)
     seeds = parse_seeds(args.seeds)
+    config = parse_config(args.set)
     with ProcessPoolExecutor(max(1, args.jobs)) as ex:
         rows = list(ex.map(measure_world, seeds, [args.png] * len(seeds),
-                           [args.max_sim_time] * len(seeds)))
-    print('| world | state | covered | path/bound | primitives | update median ms (CPU) '
-          '| p99 ms (CPU) | sim s |')
-    print('|---|---|---|---|---|---|---|---|')
+                           [args.max_sim_time] * len(seeds), [config] * len(seeds)))
+    print('| world | state | covered | path/bound | ' + ' | '.join(PRIMITIVES) +
+          ' | primitives | update median ms (CPU) | p99 ms (CPU) | sim s |')
+    print('|---' * (9 + len(PRIMITIVES)) + '|')
     for r in rows:
+        per = ' | '.join(f"{r['per_bound'][k]:.2f}" for k in PRIMITIVES)
         print(f"| {r['world']} | {r['state']} | {100 * r['covered']:.2f} % | {r['ratio']:.2f} | "
-              f"{100 * r['primitive']:.1f} % | {r['median_ms']:.2f} | {r['p99_ms']:.2f} | "
-              f"{r['sim']:.0f} |")
+              f"{per} | {100 * r['primitive']:.1f} % | {r['median_ms']:.2f} | "
+              f"{r['p99_ms']:.2f} | {r['sim']:.0f} |")
     cov = [r['covered'] for r in rows]
     print(f"| mean ({len(rows)}) | - | {100 * np.mean(cov):.2f} % (min {100 * min(cov):.2f}) | "
-          f"{np.mean([r['ratio'] for r in rows]):.2f} | "
-          f"{100 * np.mean([r['primitive'] for r in rows]):.1f} % | "
+          f"{np.mean([r['ratio'] for r in rows]):.2f} | " +
+          ' | '.join(f"{np.mean([r['per_bound'][k] for r in rows]):.2f}" for k in PRIMITIVES) +
+          f" | {100 * np.mean([r['primitive'] for r in rows]):.1f} % | "
           f"{np.median([r['median_ms'] for r in rows]):.2f} | "
           f"{max(r['p99_ms'] for r in rows):.2f} | - |")
     sys.stdout.flush()
