@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from coverage_pkg.algorithm1 import PaperConfig, PaperPlanner, TracedPaths
+from coverage_pkg.algorithm1 import Branch, Node, PaperConfig, PaperPlanner, TracedPaths
 from coverage_pkg.kinematic import run_kinematic
 from coverage_pkg.sonar import SonarRing
 from coverage_pkg.world import load_world, world_from_dict
@@ -53,6 +53,66 @@ def test_traced_paths_join_samples_only_inside_the_disk_the_ring_saw_free():
     steps = [math.dist(a, b) for a, b in zip(route, route[1:])]
     assert max(steps) <= 0.32 + 1e-9            # no shortcut: 0.64 m > D - clearance
     assert route[0] == (0.0, 0.0) and route[-1] == pytest.approx((2.88, 0.0))
+
+
+def _traced(p, points, heading):
+    """Points of a GVD edge as if traced (sweep 0) along ``heading``."""
+    for x, y in points:
+        p.gvd_trace.setdefault((int(x // 1.0), int(y // 1.0)), []).append(
+            (x, y, 0, *heading))
+
+
+def test_a_branch_along_a_traced_gvd_edge_ends_traced_one_across_it_stays_open():
+    """Each GVD edge is traced once: a branch whose edge the robot has traced (from its other
+    end) ends 'traced' without a move, and its narrow node is covered by FindUncoveredNode;
+    a branch that crosses the traced edge, or leaves it, stays open."""
+    p = _planner()
+    p.on_odometry(0.0, 0.0, 0.0, 0.0)
+    _traced(p, [(x, 1.5) for x in np.arange(2.0, 8.0, 0.2)], (1.0, 0.0))
+    n = Node(0, 'narrow', (1.6, 1.5))
+    p.nodes.append(n)
+    along = Branch((1.8, 1.6), (1.0, -0.05))            # the same edge, from its start
+    across = Branch((5.0, 0.2), (0.0, 1.0))             # crosses it
+    away = Branch((5.0, 1.5), (0.0, 1.0))               # leaves it at a junction
+    n.branches += [along, across, away]
+    assert p._open_branches(n) == [across, away]
+    assert along.end == 'traced'
+    assert p.events[-1][1] == 'branch_end'
+    n.branches[:] = [along]
+    assert p.find_uncovered_node() is None and n.covered
+
+
+def test_trace_joining_a_traced_edge_along_it_is_recognised_not_one_crossing_it():
+    """The trace of a branch ends 'traced' where it runs along a GVD edge traced before it
+    began (same direction or against it), not where it crosses one."""
+    p = _planner()
+    _traced(p, [(x, 1.5) for x in np.arange(2.0, 8.0, 0.2)], (1.0, 0.0))
+    assert p._near_trace((4.0, 1.6), 0.35, before=5, along=(-1.0, 0.0))
+    assert not p._near_trace((4.0, 1.6), 0.35, before=5, along=(0.0, 1.0))
+    assert not p._near_trace((4.0, 1.6), 0.35, before=0, along=(1.0, 0.0))   # traced since
+
+
+def test_a_circuit_that_encloses_no_area_senses_its_two_tips_as_cusps():
+    """Walls about 2 delta apart: the vast cell is a sliver along the GVD and its circuit
+    runs out and back; its tips (D = delta on the GVD) are cusps, each a narrow node beyond
+    it. A circuit around a real cell senses none this way; without cusp, none."""
+    out_and_back = [(x, 2.0) for x in np.arange(3.0, 8.01, 0.3)] + \
+        [(x, 2.1) for x in np.arange(8.0, 2.99, -0.3)]
+    square = [(x, 2.0) for x in np.arange(3.0, 8.0, 0.3)] + [(8.0, 2.0), (8.0, 5.0),
+                                                              (3.0, 5.0)]
+    for trace, without, tips in ((out_and_back, (), 2), (square, (), 0),
+                                 (out_and_back, ('cusp',), 0)):
+        p = _planner(without=without)
+        p.on_odometry(0.0, 5.0, 2.0, 0.0)
+        p.t_sweep = 1.0
+        p.nodes.append(Node(0, 'vast', (5.0, 2.0)))
+        p.current = 0
+        assert p._sliver_tips(trace) == (trace is out_and_back)
+        made = [n for n in p.nodes if n.kind == 'narrow']
+        assert len(made) == tips
+        if tips:
+            assert sorted(round(n.anchor[0]) for n in made) == [3, 8]
+            assert all(p.events[n.created_by][1] == 'cusp' for n in made)
 
 
 @pytest.mark.slow
