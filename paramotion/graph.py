@@ -116,6 +116,8 @@ def spin_node(node: Node, kind: str | None = None,
     """
     kind = kind or node_executor_kind()
     nodes = [node, *getattr(node, 'components', ())]
+    if hasattr(node, 'start_clock'):
+        node.start_clock()    # a container sets its nodes' sim time and fires their timers
     if kind == 'single_threaded' and len(nodes) == 1:
         rclpy.spin(node)
         return
@@ -130,6 +132,9 @@ def spin_node(node: Node, kind: str | None = None,
             executor.spin_once()
         return
     while node.context.ok() and not (stop is not None and stop()):
+        # One callback (or 0.1 s) per call, not a longer run: rclpy 7.1.6's event queue runs
+        # past a deadline for as long as events keep arriving, so a busy node spun that way
+        # would never come back to check stop().
         executor.spin_once(timeout_sec=0.1)
 
 
