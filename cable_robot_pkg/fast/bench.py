@@ -45,7 +45,9 @@ def cpu_breakdown(duration: float = 3.0) -> dict[str, float]:
     lock-step run (as ``run_graph`` composes it) by part: the simulator's physics step
     (PyBullet, cable and wind models), its state messages, each node's callbacks (timers and
     subscriptions, message conversion and the control algorithm), and the rest (the executor,
-    messages taken, ``/clock``). Callbacks are timed with ``time.process_time``."""
+    messages taken, ``/clock``). Callbacks are timed with ``time.process_time``; the physics
+    step is also split into the cable wrench, the wind wrench, the servo commands and the rest
+    (PyBullet's step and the winches), rows "of which" that are not added again."""
     from collections import Counter
 
     from cable_robot_pkg.fast.scenario import LAUNCH_FILE, detach_qos_event_handlers
@@ -53,14 +55,15 @@ def cpu_breakdown(duration: float = 3.0) -> dict[str, float]:
     from paramotion.launch import graph_from_launch
 
     acc = Counter()
+    within = Counter()       # parts of the physics step (already in its figure)
 
-    def timed(key, fn):
+    def timed(key, fn, into=acc):
         def wrapper(*args):
             t0 = time.process_time()
             try:
                 return fn(*args)
             finally:
-                acc[key] += time.process_time() - t0
+                into[key] += time.process_time() - t0
         return wrapper
 
     with Graph() as graph:
@@ -69,6 +72,12 @@ def cpu_breakdown(duration: float = 3.0) -> dict[str, float]:
         sim.advance_time = timed('fast_sim: physics step (PyBullet, cables, wind)',
                                  sim.advance_time)
         sim.publish_state = timed('fast_sim: state messages', sim.publish_state)
+        plant = sim.plant
+        for key, owner, name in (('cable wrench', plant.cables, 'wrench'),
+                                 ('wind wrench', plant.wind, 'wrench'),
+                                 ('leg and hinge servo commands', plant, 'apply_commands')):
+            if owner is not None:
+                setattr(owner, name, timed(f'  of which {key}', getattr(owner, name), within))
         for label, node in nodes.items():
             key = f'{label}: callbacks' if node is not sim else 'fast_sim: command callbacks'
             for sub in node.subscriptions:
@@ -78,13 +87,52 @@ def cpu_breakdown(duration: float = 3.0) -> dict[str, float]:
         detach_qos_event_handlers(graph.nodes)
         graph.run_lockstep(sim, max_sim_time=0.2)
         acc.clear()
+        within.clear()
         c0 = time.process_time()
         graph.run_lockstep(sim, max_sim_time=0.2 + duration)
         total = time.process_time() - c0
-    out = {key: value / duration for key, value in acc.most_common()}
+    out = {}
+    for key, value in acc.most_common():
+        out[key] = value / duration
+        if key.startswith('fast_sim: physics step'):
+            out.update((k, v / duration) for k, v in within.most_common())
+            out['  of which PyBullet and the rest of the step'] = (
+                value - sum(within.values())) / duration
     out['executor, messages taken, /clock'] = (total - sum(acc.values())) / duration
     out['total'] = total / duration
     return out
+
+
+#: Physics settings compared by :func:`physics_settings`: (label, physics_dt s, solver
+#: iterations); the first is the packaged one.
+PHYSICS_SETTINGS = (('1 kHz, 60 iterations (used)', 0.001, 60),
+                    ('1 kHz, 30 iterations', 0.001, 30),
+                    ('1 kHz, 20 iterations', 0.001, 20),
+                    ('500 Hz, 60 iterations', 0.002, 60))
+PHYSICS_WINDS = ((23, 300.0), (7, 120.0))
+
+
+def physics_settings(duration: float = 12.0, settle: float = 5.0, latency: float = 0.04,
+                     settings: tuple = PHYSICS_SETTINGS,
+                     winds: tuple = PHYSICS_WINDS) -> list[dict]:
+    """What cheaper PyBullet settings would save and what they change: for each setting and
+    wind, the ROS-free loop (``predictive``, ``latency``) for ``duration`` sim s; its CPU s per
+    sim s and the feed RMS after ``settle``. The packaged setting is the first."""
+    from cable_robot_pkg.fast.loop import run_loop
+    rows = []
+    for label, dt, iterations in settings:
+        for seed, direction in winds:
+            c0 = time.process_time()
+            r = run_loop(duration, mode='predictive', latency=latency, settle=settle,
+                         overrides={'wind': {'seed': seed, 'direction_deg': direction},
+                                    'sim': {'physics_dt': dt,
+                                            'solver_iterations': iterations}})
+            cpu = time.process_time() - c0
+            rows.append({'setting': label, 'wind': f'{seed} / {direction:g} deg',
+                         'cpu_per_sim_s': cpu / max(r['sim_time_s'], 1e-9),
+                         'feed_rms_position_mm': r['feed_rms_position_mm'],
+                         'feed_rms_orientation_deg': r['feed_rms_orientation_deg']})
+    return rows
 
 
 def _process_env(executor: str, domain_id: int) -> dict:
@@ -259,9 +307,14 @@ PROCESS_CONFIGS = [
      {'composed': True, 'sync_max_lag': -1.0}),
     ('one process per node, rclpy.spin, simulator waits', 'single_threaded',
      {'composed': False, 'sync_max_lag': 0.0}),
-    ('one process per node, events executor, simulator waits (launch defaults)', 'events', {}),
-    ('control nodes composed, events executor, simulator waits', 'events',
-     {'composed': True, 'sync_max_lag': 0.0}),
+    ('one process per node, events executor, simulator waits', 'events',
+     {'composed': False, 'sync_max_lag': 0.0}),
+    ('control nodes composed, events executor, simulator waits (launch defaults)', 'events', {}),
+    ('control nodes composed, timers fired by the events executor (sim_timers:=executor), '
+     'simulator waits', 'events', {'composed': True, 'sim_timers': 'executor'}),
+    ('control nodes composed, waitset executor, simulator waits', 'waitset', {}),
+    ('control nodes composed, simulator waits, /clock and state every 10 ms '
+     '(publish_period:=0.01)', 'events', {'publish_period': 0.01}),
 ]
 
 
@@ -322,5 +375,6 @@ BENCHES = {'fast': (bench_fast, {
     'fast_real_time_factor': 'FAST real-time factor',
     'fast_real_time_factor_cpu': 'FAST sim s / CPU s (one process)'})}
 
-__all__ = ['BENCHES', 'LOCKSTEP', 'PROCESS_CONFIGS', 'bench_fast', 'bench_one_process',
-           'bench_processes', 'process_row', 'report_lines']
+__all__ = ['BENCHES', 'LOCKSTEP', 'PHYSICS_SETTINGS', 'PROCESS_CONFIGS', 'bench_fast',
+           'bench_one_process', 'bench_processes', 'physics_settings', 'process_row',
+           'report_lines']
