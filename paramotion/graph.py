@@ -116,8 +116,6 @@ def spin_node(node: Node, kind: str | None = None,
     """
     kind = kind or node_executor_kind()
     nodes = [node, *getattr(node, 'components', ())]
-    if hasattr(node, 'start_clock'):
-        node.start_clock()    # a container sets its nodes' sim time and fires their timers
     if kind == 'single_threaded' and len(nodes) == 1:
         rclpy.spin(node)
         return
@@ -674,15 +672,15 @@ class InProcessDelivery:
         self.fed = fed
 
     def _queue(self, sub: Subscription) -> deque:
-        """The reader's queue; messages the middleware holds for it move there first."""
+        """The reader's queue; messages the middleware holds for it (published before the
+        topic went in process, or by a publisher that fell back to it) move there first."""
         queue = self.queues.setdefault(id(sub), deque())
-        if id(sub) not in self.fed:
-            depth = _depth(sub)
-            while True:
-                taken = sub.handle.take_message(sub.msg_type, False)
-                if taken is None:
-                    break
-                _put(queue, taken[0], depth)
+        depth = _depth(sub)
+        while True:
+            taken = sub.handle.take_message(sub.msg_type, False)
+            if taken is None:
+                break
+            _put(queue, taken[0], depth)
         return queue
 
     def _publisher(self, pub: Any, targets: list, readers: int) -> Callable[[Any], None]:

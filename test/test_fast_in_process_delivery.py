@@ -111,3 +111,29 @@ def test_topics_with_raw_or_outside_readers_stay_on_the_middleware():
     assert got == [1.0, 2.0, 3.0] and raw == 3 and not fed
     got, _, outside, fed = _exchange(10, outside_reader=True)
     assert got == [1.0, 2.0, 3.0] and outside == [1.0, 2.0, 3.0] and not fed
+
+
+def _late_reader():
+    """A second reader joins after the topic went in process; what each reader gets."""
+    with Graph() as graph:
+        node = graph.add(_Talker)
+        pub = node.create_publisher(Float64, '/delivery_late', 10)
+        first, second = [], []
+        node.create_subscription(Float64, '/delivery_late', lambda m: first.append(m.data), 10)
+        graph.drain()
+        pub.publish(Float64(data=1.0))
+        graph.drain()
+        node.create_subscription(Float64, '/delivery_late', lambda m: second.append(m.data), 10)
+        pub.publish(Float64(data=2.0))       # the publisher sees a reader more than it fed
+        graph.drain()
+        pub.publish(Float64(data=3.0))
+        graph.drain()
+        return first, second
+
+
+def test_a_reader_joining_later_gets_what_the_middleware_would_give_it():
+    with graph_defaults(in_process_delivery=False):
+        want = _late_reader()
+    got = _late_reader()
+    assert got == want
+    assert got[0] == [1.0, 2.0, 3.0] and got[1][-1] == 3.0
