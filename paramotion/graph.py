@@ -116,6 +116,8 @@ def spin_node(node: Node, kind: str | None = None,
     """
     kind = kind or node_executor_kind()
     nodes = [node, *getattr(node, 'components', ())]
+    if hasattr(node, 'start_clock'):
+        node.start_clock()    # a container sets its nodes' sim time and fires their timers
     if kind == 'single_threaded' and len(nodes) == 1:
         rclpy.spin(node)
         return
