@@ -137,3 +137,21 @@ def test_a_reader_joining_later_gets_what_the_middleware_would_give_it():
     got = _late_reader()
     assert got == want
     assert got[0] == [1.0, 2.0, 3.0] and got[1][-1] == 3.0
+
+
+def test_every_reader_of_the_fast_graph_is_fed_in_process(monkeypatch):
+    """The lever is in use where it matters: in the FAST graph (no recorder) every
+    subscription of every node is fed in process, so its drain rounds need no middleware
+    wait."""
+    from cable_robot_pkg.fast.scenario import LAUNCH_FILE, detach_qos_event_handlers
+    from paramotion.launch import graph_from_launch
+    monkeypatch.delenv('ROS_DOMAIN_ID', raising=False)    # a private graph, as users get
+    with Graph() as graph:
+        nodes, _ = graph_from_launch(graph, LAUNCH_FILE, {})
+        detach_qos_event_handlers(graph.nodes)
+        graph.run_lockstep(nodes['fast_sim'], max_sim_time=0.05)
+        delivery = graph._lockstep.delivery
+        subs = [sub for node in graph.nodes for sub in node.subscriptions]
+        assert len(subs) >= 15
+        assert {id(sub) for sub in subs} <= delivery.fed
+        assert not graph._lockstep._wait_sets     # no round needed the middleware's wait
