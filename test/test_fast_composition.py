@@ -177,6 +177,27 @@ def test_container_clock_fires_each_sim_time_timer_once_at_its_due_time(executor
     assert TICKS == expected
 
 
+def test_launch_file_composes_the_control_nodes_by_default_with_the_container_clock():
+    """The defaults: the simulator and one container (sim_timers container); the simulator's
+    start gate counts the container's one /clock subscription (the recorder's two more), or
+    the four control processes' with composed:=false."""
+    def gate(**args):
+        desc = load_launch('fast', args)
+        sim = desc.nodes[0]
+        return [n.label for n in desc.nodes], sim.params['wait_for_clock_subscribers']
+
+    assert gate() == (['fast_sim', 'fast_control_container'], 1)
+    assert gate(record=True)[1] == 3
+    assert gate(composed=False) == (['fast_sim', 'fast_tracker', 'fast_trajectory',
+                                     'fast_cable_controller', 'fast_isolation_controller'], 4)
+    assert gate(composed=False, record=True)[1] == 6
+    desc = load_launch('fast', {'sim_timers': 'executor', 'latency': 0.05})
+    assert desc.nodes[1].params['sim_timers'] == 'executor'
+    assert desc.nodes[0].params['sync_first_by'] == pytest.approx(0.15)
+    assert desc.nodes[0].params['sync_expect'] == ['fast_isolation_controller',
+                                                   'fast_cable_controller']
+
+
 def _feed_series(composed, duration=0.6):
     """The feed pose after every lock-step period of a graph whose control nodes are separate
     (from the launch file) or composed in the container (its launch-file parameters)."""

@@ -52,7 +52,7 @@ def test_fast_graph_across_processes_holds_the_feed_within_spec(tmp_path):
     mm); at 0.2x the isolation controller falls behind (leg commands skipped, 11 mm), at 0.5x
     56 mm. 0.05x leaves room for a loaded machine: 2.3 s of sim is 46 s of wall time."""
     settle, window = (0.0, 0.2) if CHECKED_UNDER_ROS2_LAUNCH else (1.5, 0.8)
-    with launched(['fast', 'real_time_factor:=0.05'], tmp_path) as (launch, w):
+    with launched(['fast', 'composed:=false', 'real_time_factor:=0.05'], tmp_path) as (launch, w):
         rms_mm, rms_deg, n = fast_feed_errors(w, launch, settle=settle, window=window)
         check_clean_stop(launch)
     if CHECKED_UNDER_ROS2_LAUNCH:

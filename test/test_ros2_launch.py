@@ -89,9 +89,11 @@ def test_climber_graph_climbs_and_stops_cleanly_on_terminal_ctrl_c(workspace, tm
 
 @needs_ros2_launch
 def test_fast_graph_holds_the_feed_and_stops_cleanly_on_terminal_ctrl_c(workspace, tmp_path):
-    """At 0.05x real time, where the five processes keep up on 2 cores (see
-    test_launch_processes.py for the speeds measured); FAST at 1.0x is not checked here."""
-    with launched([], tmp_path, cmd=ros2_launch(workspace, 'fast',
+    """One process per node (composed:=false; the default composed container is checked
+    in test_fast_composition.py), at 0.05x real time, where the five processes keep up on 2
+    cores (see test_launch_processes.py for the speeds measured); FAST at 1.0x is not checked
+    here."""
+    with launched([], tmp_path, cmd=ros2_launch(workspace, 'fast', 'composed:=false',
                                                 'real_time_factor:=0.05')) as (launch, w):
         rms_mm, rms_deg, n = fast_feed_errors(w, launch)
         out = check_clean_stop(launch)
