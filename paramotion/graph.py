@@ -445,6 +445,8 @@ class LockstepDrain:
         self.qos_events_first_round_only = qos_events_first_round_only
         self._wait_sets = {}
         self.delivery = InProcessDelivery() if in_process_delivery else None
+        self._entities_key = {}      # with / without QoS event handlers -> entity key
+        self._entities_value = {}
 
     def close(self) -> None:
         """Give the publishers back their middleware ``publish``."""
@@ -467,7 +469,33 @@ class LockstepDrain:
         ex = self.executor
         with ex._tasks_lock:
             pending = any(not t.done() for t, _, _ in ex._tasks)
-        return pending or any(True for node in nodes for _ in node.guards)
+        return pending or any(_live_lists(node)[6] for node in nodes)
+
+    def _entities(self, nodes: list[Node], qos_events: bool) -> tuple[list, list]:
+        """``(per_node, waited)``: per node its timers, subscriptions, clients, services and
+        waitables (QoS event handlers only with ``qos_events``), and the same without the
+        subscriptions fed in process (what the wait set holds). Rebuilt only when the nodes'
+        entities or the in-process routing changed (read from rclpy's entity lists, not
+        through its generator properties, a large part of a round's cost otherwise)."""
+        lists = [_live_lists(node) for node in nodes]
+        key = (tuple(id(node) for node in nodes),
+               tuple(id(e) for group in lists for lst in group[:6] for e in lst))
+        delivery = self.delivery
+        if delivery is not None:
+            delivery.route(nodes, key)
+            key = key + (id(delivery.fed),)
+        if key != self._entities_key.get(qos_events):
+            per_node = [(node, list(timers), list(subs), list(clients), list(services),
+                         [w for w in waitables
+                          if qos_events or not isinstance(w, EventHandler)])
+                        for node, (timers, subs, clients, services, waitables, *_)
+                        in zip(nodes, lists)]
+            waited = per_node if delivery is None else [
+                (node, timers, [s for s in subs if id(s) not in delivery.fed], *rest)
+                for node, timers, subs, *rest in per_node]
+            self._entities_key[qos_events] = key
+            self._entities_value[qos_events] = (per_node, waited)
+        return self._entities_value[qos_events]
 
     def _round(self, qos_events: bool = True, timeout_ns: int = 0) -> int:
         """One wait (``timeout_ns``: 0 polls, > 0 blocks until something is ready or the time
@@ -478,22 +506,14 @@ class LockstepDrain:
             return 0
         if self._fallback_needed(nodes):
             return self._rclpy_round()
-        per_node = [(node, list(node.timers), list(node.subscriptions), list(node.clients),
-                     list(node.services),
-                     [w for w in node.waitables if qos_events or not isinstance(w, EventHandler)])
-                    for node in nodes]
+        per_node, waited = self._entities(nodes, qos_events)
         delivery = self.delivery
         queues, held = {}, ()
         if delivery is not None:
             # Subscriptions fed in process are not in the wait set; like the wait, the
             # snapshot of their queues says which of them have a message this round.
-            delivery.route(nodes)
             queues = delivery.queues
             held = delivery.snapshot()
-            waited = [(node, timers, [s for s in subs if id(s) not in delivery.fed], *rest)
-                      for node, timers, subs, *rest in per_node]
-        else:
-            waited = per_node
         only_timers = timeout_ns == 0 and not any(
             group for _, _, *groups in waited for group in groups)
         ws = None if only_timers else self._fill_wait_set(waited)
@@ -643,9 +663,9 @@ class InProcessDelivery:
         """The readers with a message waiting (as the wait would find them ready)."""
         return {key for key, queue in self.queues.items() if queue}
 
-    def route(self, nodes: list[Node]) -> None:
-        """Decide each topic's path again when the graph's publishers or readers changed."""
-        key = tuple(id(e) for node in nodes for e in (*node.publishers, *node.subscriptions))
+    def route(self, nodes: list[Node], key: Any) -> None:
+        """Decide each topic's path again when ``key`` (the graph's entities, publishers and
+        readers among them) changed, or a publisher asked for it."""
         if key != self._key:
             self._route(nodes)
             self._key = key
@@ -711,6 +731,19 @@ class InProcessDelivery:
         self._hooked = {}
         self.fed = set()
         self._key = None
+
+
+def _live_lists(node: Node) -> tuple:
+    """rclpy's own lists of a node's timers, subscriptions, clients, services, waitables,
+    publishers and guard conditions (its properties are generators over them); copies where
+    this rclpy keeps them elsewhere."""
+    try:
+        return (node._timers, node._subscriptions, node._clients, node._services,
+                node._Node__waitables, node._publishers, node._guards)
+    except AttributeError:
+        return (list(node.timers), list(node.subscriptions), list(node.clients),
+                list(node.services), list(node.waitables), list(node.publishers),
+                list(node.guards))
 
 
 def _in_process_topic(pubs: list, subs: list) -> bool:
@@ -814,18 +847,25 @@ def _make_copier(cls: type) -> Callable[[Any], Any]:
             plan.append(('_' + name, sequence(t)))
         else:
             plan.append(('_' + name, scalar(t)))
-    has_check = '_check_fields' in cls.__slots__
-    new = cls.__new__
-
-    def copier(msg):
-        out = new(cls)
-        for slot, convert in plan:
-            value = getattr(msg, slot)
-            setattr(out, slot, value if convert is None else convert(value))
-        if has_check:
-            out._check_fields = msg._check_fields
-        return out
-    return copier
+    # One straight-line function per type (no loop over the fields, no setattr by name); a
+    # float or int field that already holds that type is taken as it is.
+    names = {'new': cls.__new__, 'cls': cls}
+    lines = ['def copier(msg):', '    out = new(cls)']
+    for k, (slot, convert) in enumerate(plan):
+        if convert is None:
+            lines.append(f'    out.{slot} = msg.{slot}')
+        elif convert in (float, int, str, bool):
+            lines += [f'    v = msg.{slot}',
+                      f'    out.{slot} = v if type(v) is {convert.__name__} '
+                      f'else {convert.__name__}(v)']
+        else:
+            names[f'convert{k}'] = convert
+            lines.append(f'    out.{slot} = convert{k}(msg.{slot})')
+    if '_check_fields' in cls.__slots__:
+        lines.append('    out._check_fields = msg._check_fields')
+    lines.append('    return out')
+    exec('\n'.join(lines), names)     # noqa: S102 (generated from the type's own fields)
+    return names['copier']
 
 
 def rclpy_wait_round(executor: Executor) -> int:
