@@ -67,6 +67,9 @@ class ClockSourceNode(ParamotionNode):
               'which an expected controller answers first, and its second answer follows its '
               'first (its period is known from its second answer on).', min=0.001, max=60.0,
               read_only=True),
+        Param('sync_on_answer', True, 'Free-running with sync_max_lag >= 0: a simulator '
+              'holding for an answer advances right after the answer arrives (at most at '
+              'real_time_factor) instead of at its next wall-timer tick.', read_only=True),
         Param('sync_repeat', 0.05, 'Free-running with sync_max_lag >= 0: while waiting for an '
               'answer, publish the current time on /clock again at most this often (wall s; '
               '/clock is best effort, a controller that lost the sample would never answer).',
@@ -93,6 +96,9 @@ class ClockSourceNode(ParamotionNode):
         self._expected = [name for name in self.params.sync_expect if name]
         self._sync_since = None       # wall time (monotonic) the current wait began
         self._said_at = 0.0           # wall time (monotonic) /clock was last published
+        self._advanced_at = 0.0       # wall time (monotonic) of the last advance
+        self._wall_period = 0.0       # wall seconds per period at real_time_factor
+        self._answer_tick_queued = False
         #: Controllers silent for ``sync_timeout``: not waited for until they answer again.
         self.given_up: set[str] = set()
         if not self.params.lockstep:
@@ -119,6 +125,7 @@ class ClockSourceNode(ParamotionNode):
     def _start_free_running(self) -> None:
         rtf = self.params.real_time_factor
         period = self.params.publish_period / rtf if rtf > 0 else 0.0
+        self._wall_period = period
         self._wall_timer = self.create_timer(
             period, self._free_running_tick, clock=Clock(clock_type=ClockType.STEADY_TIME))
 
@@ -163,6 +170,20 @@ class ClockSourceNode(ParamotionNode):
             entry[2].append(stamp_ns - entry[0])
             entry[1] = sorted(entry[2])[len(entry[2]) // 2]
             entry[0] = stamp_ns
+        if self._sync_since is not None and not self._answer_tick_queued and \
+                self.params.sync_on_answer and self.executor is not None:
+            # Holding for an answer: look again right after this callback (which applies the
+            # command), not up to a wall-timer period later; each round trip of a waiting
+            # simulator would otherwise idle half a period on average.
+            self._answer_tick_queued = True
+            self.executor.create_task(self._answer_tick)
+
+    def _answer_tick(self) -> None:
+        """A tick of the wall timer brought forward by an answer, unless that would run
+        ahead of ``real_time_factor`` (one wall period since the last advance)."""
+        self._answer_tick_queued = False
+        if time.monotonic() - self._advanced_at >= self._wall_period:
+            self._free_running_tick()
 
     def _late_answer(self) -> str | None:
         """The first controller whose answer is overdue by more than the lag, else None: an
@@ -223,7 +244,7 @@ class ClockSourceNode(ParamotionNode):
         msg = ClockMsg(clock=self.stamp())
         self._clock_pub.publish(msg)
         if self._sync_lag_ns >= 0:
-            self._said_at = time.monotonic()
+            self._said_at = self._advanced_at = time.monotonic()
         for hook in self.clock_hooks:
             hook(msg)
         self.publish_state()
