@@ -388,7 +388,16 @@ class Graph:
                 source.clock_callback(msg)
 
     def spin_wall(self, seconds: float, until: Callable[[], bool] | None = None) -> bool:
-        """Spin on wall-clock time (free-running sources, DDS peers) for ``seconds``."""
+        """Spin on wall-clock time (free-running sources, DDS peers) for ``seconds``.
+
+        rclpy's executor spins here, so the publishers go back to the middleware first (the
+        next lock-step drain hands messages over in process again); messages already handed
+        over and not yet taken are run first, by a drain."""
+        delivery = self._lockstep.delivery
+        if delivery is not None:
+            if delivery.snapshot():
+                self.drain()
+            delivery.close()
         end = time.monotonic() + seconds
         while time.monotonic() < end:
             if until is not None and until():
@@ -644,6 +653,9 @@ class InProcessDelivery:
     does). :class:`LockstepDrain` takes a snapshot of the queues where it waits and runs each
     reader that had a message in its place in the executor's order, oldest message first, as
     it would after the wait: the callbacks run in the same order with the same messages.
+
+    Only the lock-step drain reads the queues: :meth:`Graph.spin_wall` gives the publishers
+    back to the middleware before rclpy's executor spins.
 
     A topic stays on the middleware when one of its readers is raw (a bag recorder), wants
     the message info, or lies outside the graph (the middleware counts more matched readers

@@ -155,3 +155,25 @@ def test_every_reader_of_the_fast_graph_is_fed_in_process(monkeypatch):
         assert len(subs) >= 15
         assert {id(sub) for sub in subs} <= delivery.fed
         assert not graph._lockstep._wait_sets     # no round needed the middleware's wait
+
+
+def test_spinning_on_wall_time_after_a_drain_uses_the_middleware_again():
+    """After a lock-step drain handed messages over in process, ``spin_wall`` (rclpy's
+    executor) still delivers, and the next drain goes in process again."""
+    with Graph() as graph:
+        node = graph.add(_Talker)
+        pub = node.create_publisher(Float64, '/delivery_wall', 10)
+        got = []
+        node.create_subscription(Float64, '/delivery_wall', lambda m: got.append(m.data), 10)
+        graph.drain()
+        pub.publish(Float64(data=1.0))
+        graph.drain()
+        assert graph._lockstep.delivery.fed
+        pub.publish(Float64(data=2.0))          # handed over, not yet taken
+        graph.spin_wall(0.2, until=lambda: len(got) >= 2)
+        assert got == [1.0, 2.0]
+        pub.publish(Float64(data=3.0))          # through the middleware now
+        assert graph.spin_wall(2.0, until=lambda: len(got) >= 3)
+        pub.publish(Float64(data=4.0))
+        graph.drain()
+        assert got == [1.0, 2.0, 3.0, 4.0] and graph._lockstep.delivery.fed
