@@ -5,7 +5,7 @@ A simulated sensor, so ground truth is its input: it reads the ring's true pose 
 (120 deg apart in the ring plane, pointing at the ring axis, positions from the robot parameter
 file) against the structure of ``trunk_file``: each sensor answers with the nearest echo inside
 its cone (``field_of_view`` of the robot file, :meth:`Trunk.cone_distance`, computed by
-:func:`cone_distances` with one batch of rays). At ``rate`` Hz of
+:func:`climber_pkg.cone_cast.cone_distances`, one batch of rays). At ``rate`` Hz of
 sim time it publishes one Range per sensor on ``/climber/ring<N>/ultrasonic`` (frame
 ``ring<N>_us<k>``, k = 0, 1, 2):
 Gaussian noise, ``+inf`` with no echo (past the top of the structure or beyond max range),
@@ -13,12 +13,11 @@ Gaussian noise, ``+inf`` with no echo (past the top of the structure or beyond m
 with probability ``dropout_probability``.
 """
 
-import math
-
 import numpy as np
 from geometry_msgs.msg import PoseArray
 from sensor_msgs.msg import Range
 
+from climber_pkg.cone_cast import cone_distances
 from climber_pkg.robot import load_robot_config
 from climber_pkg.trunk import Trunk
 from paramotion.errors import ParameterError
@@ -27,49 +26,6 @@ from paramotion.node import Param, ParamotionNode, run_node
 from paramotion.qos import SENSOR_QOS
 from paramotion.range_sensing import rep117_reading
 from paramotion.rotations import matrix_from_quat
-
-#: Rays sampling the rim of each cone (the default of :meth:`Trunk.cone_distance`).
-RIM_RAYS = 24
-
-
-def cone_distances(trunk: Trunk, origins: np.ndarray, directions: np.ndarray,
-                   field_of_view: float, max_range: float,
-                   rim_rays: int = RIM_RAYS) -> np.ndarray:
-    """:meth:`Trunk.cone_distance` of the sensors (n, 3) with one :meth:`Trunk.ray_distance`
-    call for the centre and rim rays of every cone together (half the closest-point queries
-    of two calls). Every ray is computed on its own in either form, so the distances are the
-    same bit for bit (``test/test_climber_graph.py::test_batched_cone_distances_equal_the_
-    trunk_cones``)."""
-    o = np.asarray(origins, dtype=float).reshape(-1, 3)
-    d = np.asarray(directions, dtype=float).reshape(-1, 3)
-    d = d / np.linalg.norm(d, axis=1, keepdims=True)
-    if not field_of_view > 0:
-        return trunk.ray_distance(o, d, max_range)
-    n = len(o)
-    half = 0.5 * float(field_of_view)
-    helper = np.where(np.abs(d[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
-    e1 = np.cross(d, helper)
-    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
-    e2 = np.cross(d, e1)
-    ang = np.linspace(0.0, 2 * np.pi, rim_rays, endpoint=False)
-    rim = (math.cos(half) * d[:, None, :]
-           + math.sin(half) * (np.cos(ang)[None, :, None] * e1[:, None, :]
-                               + np.sin(ang)[None, :, None] * e2[:, None, :]))
-    dist = trunk.ray_distance(np.concatenate([o, np.repeat(o, rim_rays, axis=0)]),
-                              np.concatenate([d, rim.reshape(-1, 3)]), max_range)
-    best = np.minimum(dist[:n], dist[n:].reshape(n, rim_rays).min(axis=1))
-    s, _ = trunk.closest(o)
-    w = o - trunk.point_at(s)
-    a = trunk.tangent_at(s)
-    wp = w - np.einsum('ij,ij->i', w, a)[:, None] * a
-    dist_axis = np.linalg.norm(wp, axis=1)
-    with np.errstate(invalid='ignore', divide='ignore'):
-        toward = -wp / dist_axis[:, None]
-        inside_cone = np.einsum('ij,ij->i', toward, d) >= math.cos(half)
-    near = dist_axis - trunk.radius_at(s)
-    ok = (inside_cone & (s > 0.0) & (s < trunk.length) & (near >= 0.0) & (near <= max_range)
-          & (dist_axis > 1e-9))
-    return np.where(ok, np.minimum(best, near), best)
 
 
 class ClimberUltrasonicNode(ParamotionNode):

@@ -179,11 +179,14 @@ def test_trunk_queries():
 
 
 def test_batched_cone_distances_equal_the_trunk_cones():
-    """The ultrasonic node casts every cone's centre and rim rays in one batch; each ray is
-    computed on its own either way, so the distances equal Trunk.cone_distance bit for bit:
-    on the packaged trunks, near and off the axis, tilted, past the foot and the top, with
-    the robot's cone and other fields of view (0: the centre ray alone)."""
-    from climber_pkg.ultrasonic_node import cone_distances
+    """The ultrasonic node casts every cone's centre and rim rays in one batch, by numpy or by
+    the compiled kernels; each ray is computed on its own either way, so the distances equal
+    Trunk.cone_distance bit for bit: on the packaged trunks, near and off the axis, tilted,
+    past the foot and the top, with the robot's cone and other fields of view (0: the centre
+    ray alone)."""
+    from climber_pkg.cone_cast import cone_distances
+    from paramotion.backend import resolve_backend
+    backends = ['numpy'] + (['numba'] if resolve_backend('auto') == 'numba' else [])
     from paramotion.rotations import matrix_from_rotvec
     origins, dirs = ROBOT.sensor_rays()
     rng = np.random.default_rng(5)
@@ -199,7 +202,8 @@ def test_batched_cone_distances_equal_the_trunk_cones():
             fov = (ROBOT.sensor_fov, 0.0, float(rng.uniform(0.05, 1.0)))[k % 3]
             o, d = pos + origins @ rot.T, dirs @ rot.T
             want = trunk.cone_distance(o, d, fov, ROBOT.sensor_max_range)
-            got = cone_distances(trunk, o, d, fov, ROBOT.sensor_max_range)
-            assert np.array_equal(got, want), (name, k, got, want)
+            for backend in backends:
+                got = cone_distances(trunk, o, d, fov, ROBOT.sensor_max_range, backend=backend)
+                assert np.array_equal(got, want), (name, k, backend, got, want)
             finite += int(np.isfinite(want).sum())
     assert finite > 300          # most cones see the structure: echoes are compared, not infs
