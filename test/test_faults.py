@@ -245,7 +245,8 @@ def test_fast_tracker_killed_controllers_hold_then_recover_on_restart(tmp_path):
     from sensor_msgs.msg import JointState
 
     from paramotion.qos import SENSOR_QOS, STATE_QOS
-    with launched_graph('fast', {'real_time_factor': 0.1}, tmp_path) as (launcher, log, w):
+    with launched_graph('fast', {'real_time_factor': 0.1, 'composed': 'false'}, tmp_path) as (
+            launcher, log, w):
         diags, legs, cables, tracked = [], [], [], []
         w.subscribe(DiagnosticArray, '/diagnostics',
                     lambda m: diags.extend((w.sim_time, d) for d in m.status), STATE_QOS)
