@@ -1,0 +1,376 @@
+"""MorseDecompCoverage(n, L, F) of Algorithm 1: covering a vast node by its Morse cells.
+
+Laps along the slices of ``h = x`` spaced ``2 delta`` apart (the robot "as big as its
+detector", Section IV-A), ended at ``D = delta`` ahead; the moves between laps follow the
+boundary at ``D = delta``, and each cell's boundary circuit is followed once (cusp points are
+sensed on it, Fig. 10). A *critical point* sensed from a lap (the slice's connectivity changes
+ahead: the ring's echoes along ``+-x`` show two open stretches, or none) closes the current
+Morse cell and opens its successors in the node's Reeb graph; the node is covered when every
+Morse cell has closed.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from coverage_pkg.paper.graph_nodes import MorseCell
+
+
+class MorseDecompCoverage:
+    """Mixin of :class:`coverage_pkg.algorithm1.PaperPlanner`: laps, circuits, Morse cells."""
+
+    def _morse_step(self, n):
+        """MorseDecompCoverage: laps 2 delta apart in the current Morse cell; the moves
+        between them follow the boundary at D = delta; critical points close cells."""
+        busy = any(c.status == 'covering' for c in n.cells)
+        circ = self.task.get('circuit') or (
+            None if busy else next((c for c in n.circuits if not c['done']), None))
+        if circ is not None:
+            return self._circuit_step(n, circ)
+        cell = self._open_cell(n)
+        if cell is None:
+            n.covered = True
+            return None
+        if self.mode == 'transit':
+            return None
+        tk, s = self.task, cell.sweep
+        if tk.get('phase') is None:                # at the cell's start
+            if self._known_region(n, cell):
+                return None
+            if cell.resume is not None:            # the slice beyond an obstacle
+                tk.update(dir=cell.resume[2], x=self.pose[0], phase='lap')
+                self.mode = 'lap'
+                self._profile_reset()
+                return None
+            if cell.prev_span is None:             # a node's first cell: find its left side
+                tk.update(phase='find_left')
+            else:                                  # a successor: its first lap is ahead
+                tk.update(phase='advance', x0=self.pose[0], first=True)
+            self.mode = 'boundary'
+        if tk['phase'] == 'find_left':             # to the cell's opening side
+            if self.echo(math.pi if s > 0 else 0.0) > self.det:
+                return self._boundary_velocity(-s)
+            tk.update(phase='advance', x0=self.pose[0], first=True)   # the circuit lapped it
+            return None
+        if tk['phase'] in ('lap_first', 'lap'):
+            if self.echo(math.pi / 2 * tk['dir']) > self.det:
+                return self._lap_velocity(tk['x'], tk['dir'])
+            self._island(n, cell, tk['dir'])
+            if tk['phase'] == 'lap_first':         # one end of the slice reached: lap it
+                tk.update(phase='lap', dir=-tk['dir'])
+                self._profile_reset()
+                return None
+            return self._end_lap(n, cell)
+        moved = s * (self.pose[0] - tk['x0'])      # advance: to the next slice, 2 delta on
+        if moved < self.spacing and self.echo(0.0 if s > 0 else math.pi) > self.det:
+            return self._boundary_velocity(s)
+        if moved < 0.3:
+            return self._close_cell(n, cell, None, 'no room for another lap')
+        if self._known_region(n, cell):
+            return None
+        return self._start_lap(first=tk.get('first', False))
+
+    def _start_lap(self, first):
+        """Begin a lap at this column: a first lap goes to one end of the slice, then laps it
+        whole; a later lap runs back from the end the last one reached."""
+        tk = self.task
+        if first:
+            span = self._cell().prev_span
+            up = span is None or self.pose[1] >= 0.5 * (span[0] + span[1])
+            tk.update(phase='lap_first', dir=1 if up else -1)
+        else:
+            tk.update(phase='lap', dir=-tk.get('dir', 1))
+        tk.update(x=self.pose[0], first=False)
+        self.mode = 'lap'
+        self._profile_reset()
+        return None
+
+    def _cell(self):
+        n = self.nodes[self.current]
+        return n.cells[self.task['cell']]
+
+    def _open_cell(self, n):
+        """The Morse cell being covered, else the nearest open one (transit to its start)."""
+        cell = next((c for c in n.cells if c.status == 'covering'), None)
+        if cell is not None:
+            return cell
+        opened = [c for c in n.cells if c.status == 'open' and c.start is not None]
+        if not opened:
+            return None
+        src = self.paths.nearest(self.pose[:2])
+        dist = self.paths.distances(src)
+        cell = min(opened, key=lambda c: (dist.get(self.paths.nearest(c.start), 1e6), c.id))
+        cell.status = 'covering'
+        self.task = {'cell': cell.id, 'phase': None, 's': cell.sweep}
+        self._go_to(cell.start, then=None)
+        return cell
+
+    def _known_region(self, n, cell):
+        """The lap about to start lies on a lap of another Morse cell: this cell has run into
+        one already covered (a merge of the Reeb graph, recognised at a known slice)."""
+        x, y = self.pose[:2]
+        for m in self.nodes:
+            for c in m.cells:
+                if c is cell or (m is n and c.id == cell.parent):
+                    continue
+                for lx, lo, hi in c.laps:
+                    if abs(lx - x) < 0.75 * self.det and lo - 0.5 <= y <= hi + 0.5:
+                        self._close_cell(n, cell, None, f'reached Morse cell {m.id}.{c.id}')
+                        return True
+        return False
+
+    def _end_lap(self, n, cell):
+        """A lap has ended at D = delta: record it, read the slice ahead and behind from the
+        lap's echoes (critical points), then advance or close the cell."""
+        tk, s = self.task, cell.sweep
+        prof = np.array(tk['profile']) if tk['profile'] else np.zeros((0, 3))
+        y0 = tk['y0']
+        lo, hi = sorted((y0, self.pose[1]))
+        cell.laps.append((tk['x'], lo, hi))
+        prev_span = tk.get('prev_span') or cell.prev_span or (lo, hi)
+        tk['prev_span'] = (lo, hi)
+        if 'critical' not in self.cfg.without and len(prof):
+            runs = self._runs(prof[:, 0], prof[:, 1] > self.far)
+            if len(runs) >= 2:
+                return self._split(n, cell, prof, runs)
+            for a, b in self._runs(prof[:, 0], prof[:, 2] > self.far):
+                if b < prev_span[0] - 1.0 or a > prev_span[1] + 1.0:
+                    self._birth_behind(n, cell, (a, b))
+            if not runs:
+                i = int(np.nanargmin(prof[:, 1]))
+                return self._close_cell(n, cell, (tk['x'] + s * prof[i, 1], prof[i, 0]),
+                                        'death: the slice ends ahead')
+            if len(runs) == 1 and not runs[0][0] - 0.3 <= self.pose[1] <= runs[0][1] + 0.3:
+                y = runs[0][1] if self.pose[1] > runs[0][1] else runs[0][0]
+                tk.update(phase='advance', x0=tk['x'])
+                self._go_to((tk['x'], y), then='boundary')
+                return None
+        tk.update(phase='advance', x0=self.pose[0])
+        self.mode = 'boundary'
+        return None
+
+    def _runs(self, ys, mask):
+        """Stretches (y_lo, y_hi) of a lap where ``mask`` holds, at least ``min_run`` long."""
+        order = np.argsort(ys)
+        ys, mask = ys[order], mask[order]
+        runs, start, last = [], None, None
+        for y, m in zip(np.r_[ys, np.inf], np.r_[mask, False]):
+            if m and start is None:
+                start = y
+            elif not m and start is not None:
+                if last - start >= self.cfg.min_run:
+                    runs.append((float(start), float(last)))
+                start = None
+            last = y
+        return runs
+
+    def _split(self, n, cell, prof, runs):
+        """Critical point ahead between two open stretches: the slice splits. The current
+        Morse cell closes there and one successor per stretch opens (Reeb graph)."""
+        tk, s = self.task, cell.sweep
+        gap = (prof[:, 0] > runs[0][1]) & (prof[:, 0] < runs[1][0])
+        i = int(np.nanargmin(np.where(gap, prof[:, 1], np.inf))) if gap.any() else 0
+        xy = (tk['x'] + s * prof[i, 1], prof[i, 0])
+        idx = self._critical(n, xy, 'split')
+        if idx is None:
+            return self._advance_anyway(cell)
+        self._close_cell(n, cell, None, 'split', idx=idx)
+        n.circuits.append({'start': (xy[0] - s * self.det, xy[1]), 'done': False,
+                           'opened_by': idx})
+        here = self.pose[1]
+        runs = sorted(runs, key=lambda r: min(abs(here - r[0]), abs(here - r[1])))
+        for a, b in runs:
+            y = min((a, b), key=lambda v: abs(here - v)) if (a, b) == runs[0] else (a + b) / 2
+            n.cells.append(MorseCell(len(n.cells), (tk['x'], y), s, prev_span=(a, b),
+                                     opened_by=idx, parent=cell.id))
+        return None
+
+    def _advance_anyway(self, cell):
+        self.task.update(phase='advance', x0=self.pose[0])
+        self.mode = 'boundary'
+        return None
+
+    def _birth_behind(self, n, cell, run):
+        """Open slice behind the lap, beyond the last lap's span: a cell opening towards -x."""
+        y = (run[0] + run[1]) / 2
+        start = (self.task['x'], y)
+        for m in self.nodes:
+            for c in m.cells:
+                if (c.start is not None and math.dist(c.start, start) < self.det) or any(
+                        abs(lx - start[0]) < 0.9 * self.det and lo - 0.5 <= y <= hi + 0.5
+                        for lx, lo, hi in c.laps if c is not cell):
+                    return
+        idx = self._critical(n, (start[0] - cell.sweep * self.det, y), 'birth behind')
+        if idx is not None:
+            n.cells.append(MorseCell(len(n.cells), start, -cell.sweep, prev_span=run,
+                                     opened_by=idx, parent=cell.id))
+
+    def _critical(self, n, xy, kind):
+        idx = self._on_event(self.t_sweep, 'critical', xy, f'{kind}: the slice changes '
+                             'connectivity (critical point of h = x)')
+        if idx is not None:
+            n.critical.append((float(xy[0]), float(xy[1]), kind, idx))
+        return idx
+
+    def _close_cell(self, n, cell, xy, why, idx=None):
+        if idx is None and xy is not None:
+            idx = self._critical(n, xy, why)
+        cell.status, cell.closed_by = 'covered', idx
+        self._record(self.t_sweep, 'cell_closed', self.pose,
+                     f'Morse cell {n.id}.{cell.id}: {why}')
+        self.mode, self.task = None, {}
+        return None
+
+    def _profile_reset(self):
+        self.task['profile'] = []
+        self.task['y0'] = self.pose[1]
+
+    def _profile_sample(self):
+        """Echoes along +-x (the sweep direction and behind) at this point of the lap."""
+        if 'profile' in self.task:
+            ahead = 0.0 if self.task.get('s', 1) > 0 else math.pi
+            c = self.cfg.slice_cone
+            self.task['profile'].append((self.pose[1], self.echo(ahead, c),
+                                         self.echo(ahead + math.pi, c)))
+
+    def _lap_velocity(self, x_col, direction):
+        """A straight lap along the slice x = x_col (the holonomic base keeps the column)."""
+        return np.array([1.5 * (x_col - self.pose[0]), direction * self.cfg.max_speed])
+
+    def _boundary_velocity(self, s):
+        """Along +-x between two laps, following the boundary at D = delta: never nearer,
+        and pulled back to it when it is within reach."""
+        v = np.array([s * self.cfg.max_speed, 0.0])
+        if self.mins:
+            d, a = self.mins[0]
+            nrm = np.array([math.cos(a), math.sin(a)])
+            if d < self.det + 0.3:
+                v = v - max(v @ nrm, 0.0) * nrm + np.clip(d - self.det, -1.0, 0.3) * nrm
+        return v
+
+    def _island(self, n, cell, direction):
+        """The lap ends at an obstacle no boundary circuit has followed: an obstacle inside
+        the Morse cell. Where the slice meets it is a critical point (the slice splits); the
+        obstacle's boundary is followed next, and a successor cell resumes the slice on its
+        far side. The current cell goes on, on the near side."""
+        if 'critical' in self.cfg.without:
+            return
+        d = self.echo(math.pi / 2 * direction)
+        p = (self.pose[0], self.pose[1] + direction * d)
+        for c in n.circuits:                # followed already, or about to be
+            if (not c['done'] and math.dist(c['start'], p) < self.det + 0.5) or any(
+                    math.dist(q, p) < 0.6 for q in c.get('wall', ())):
+                return
+        idx = self._critical(n, p, 'split: the slice meets an obstacle inside the cell')
+        if idx is None:
+            return
+        n.circuits.append({'start': self.pose[:2], 'done': False, 'opened_by': idx})
+        n.cells.append(MorseCell(len(n.cells), None, cell.sweep, opened_by=idx, parent=cell.id,
+                                 resume=(self.pose[0], self.pose[1], direction)))
+
+    def _beyond(self, n, circ):
+        """Where the obstacle's circuit crosses the interrupted slice on the far side, the
+        successor cell starts; none: the slice ended at the obstacle."""
+        for c in n.cells:
+            if c.start is not None or c.opened_by != circ['opened_by'] or c.resume is None:
+                continue
+            x, y, direction = c.resume
+            far = [q for q in circ['trace'] if abs(q[0] - x) < 0.4 and
+                   direction * (q[1] - y) > 0.5]
+            if far:
+                c.start = max(far, key=lambda q: direction * (q[1] - y))
+            else:
+                c.status = 'covered'
+
+    def _same_cell(self, n, trace):
+        """A vast node not yet covered whose cusp lies on this boundary circuit is the cell
+        just followed, reached through another cusp: it is covered with it."""
+        for m in self.nodes:
+            if m is n or m.kind != 'vast' or m.covered or m.id == self.current:
+                continue
+            if any(math.dist(m.anchor, q) < 0.7 for q in trace):
+                m.covered, m.merged_into = True, n.id
+                self._dedupe_edges()
+                m.closed_by = self._record(self.t_sweep, 'same_cell', m.anchor,
+                                           f'vast node {m.id} is vast node {n.id}: its cusp '
+                                           'lies on that boundary circuit')
+
+    def _follow_velocity(self):
+        """Boundary following at D = delta, obstacle on the right: along the tangent of the
+        closest obstacle, pulled back to D = delta along its normal."""
+        d, a = self.mins[0]
+        nrm = np.array([math.cos(a), math.sin(a)])
+        tang = np.array([-nrm[1], nrm[0]])
+        return tang * self.cfg.max_speed + np.clip(2.0 * (d - self.det), -1.0, 1.0) * nrm
+
+    def _circuit_step(self, n, circ):
+        """Follow the boundary of the vast cell at D = delta once around (Section II's
+        boundary following with the robot as big as its detector); cusp points are sensed
+        on it (Fig. 10). Ends back where it began."""
+        tk = self.task
+        if tk.get('circuit') is not circ:
+            self.task = tk = {'circuit': circ}
+            self._go_to(circ['start'], then='boundary')
+            return None
+        if self.mode == 'transit':
+            return None
+        self.mode = 'boundary'
+        if not self.mins:
+            return np.zeros(2)
+        if 'origin' not in tk:
+            if self.D > self.det + 0.1:           # approach the closest obstacle first
+                d, a = self.mins[0]
+                return np.array([math.cos(a), math.sin(a)]) * self.cfg.max_speed
+            tk.update(origin=self.pose[:2], length=0.0, last=self.pose[:2])
+            self._record(self.t_sweep, 'circuit', self.pose, f'boundary of vast node {n.id}')
+        tk['length'] += math.dist(tk['last'], self.pose[:2])
+        tk['last'] = self.pose[:2]
+        trace = circ.setdefault('trace', [])
+        if not trace or math.dist(trace[-1], self.pose[:2]) > 0.3:
+            trace.append(self.pose[:2])
+            d, a = self.mins[0]               # the followed obstacle's point
+            circ.setdefault('wall', []).append((self.pose[0] + d * math.cos(a),
+                                                self.pose[1] + d * math.sin(a)))
+        back = math.dist(tk['origin'], self.pose[:2])
+        passed = tk['length'] > 3.0 and tk.get('back', math.inf) < 0.8 and back > tk['back']
+        tk['back'] = back                     # closest pass by the start counts as back
+        if (tk['length'] > 3.0 and back < 0.4) or passed or tk['length'] > 500.0:
+            circ['done'] = True
+            sliver = self._sliver_tips(circ['trace'])
+            self._same_cell(n, circ['trace'])
+            self._beyond(n, circ)
+            if not n.cells:
+                n.cells.append(MorseCell(0, self.pose[:2], +1, opened_by=circ['opened_by']))
+                if sliver:        # narrower than a lap: the circuit has swept it (one lap)
+                    self._close_cell(n, n.cells[0], None, 'the circuit encloses no area: '
+                                     'the cell is narrower than one lap and swept by it')
+            self.task, self.mode = {}, None
+            return None
+        return self._follow_velocity()
+
+    def _sliver_tips(self, trace):
+        """A circuit that encloses no area (mean width 2 A / length < 0.3 m) has followed the
+        GVD itself: the vast cell is a sliver between walls about 2 delta apart (against the
+        paper's assumption of Section IV-B). Its two tips are where D falls to delta on the
+        GVD, i.e. cusp points by the paper's definition, which the Fig. 10 test does not
+        place at a turn-around; each is sensed here, its bearing out along the sliver."""
+        if len(trace) < 4:
+            return False
+        q = np.asarray(trace, dtype=float)
+        x, y = q[:, 0], q[:, 1]
+        area = 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+        length = float(np.hypot(*np.diff(np.vstack([q, q[:1]]), axis=0).T).sum())
+        if length < 2.0 or 2.0 * area / length >= 0.3:
+            return False
+        if 'cusp' in self.cfg.without:
+            return True
+        mid = q.mean(axis=0)
+        axis = np.linalg.svd(q - mid)[2][0]
+        proj = (q - mid) @ axis
+        for tip, out in ((q[int(np.argmin(proj))], -axis), (q[int(np.argmax(proj))], axis)):
+            self._cusp_dir = math.atan2(out[1], out[0])
+            self._on_event(self.t_sweep, 'cusp', tuple(tip), 'tip of a vast cell that is a '
+                           'sliver along the GVD (D = delta on the GVD)')
+        self._cusp_dir = None
+        return True

@@ -1,0 +1,131 @@
+"""CreateNode(x, D(x)) of Algorithm 1 and the edges (L, F) that carry cusp points.
+
+A new node is vast where ``D > delta`` and narrow otherwise; it is created for the start and
+for every new cusp point: a cusp sensed while covering a vast node creates a narrow node, one
+sensed while tracing a narrow node creates a vast node, and the edge between them carries the
+cusp. A cusp that ends a traced GVD branch of a known narrow node joins that node instead.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+from coverage_pkg.paper.graph_nodes import Branch, Node
+
+
+class CreateNode:
+    """Mixin of :class:`coverage_pkg.algorithm1.PaperPlanner`: nodes and cusp edges."""
+
+    def create_node(self, kind: str, x: Sequence[float], created_by: int | None = None) -> Node:
+        """CreateNode(x, D(x)): a new uncovered node of ``kind`` anchored at ``x``."""
+        n = Node(len(self.nodes), kind, (float(x[0]), float(x[1])), created_by)
+        self.nodes.append(n)
+        self._record(self.t_sweep or 0.0, 'node_created', x,
+                     f'{kind} node {n.id}' + ('' if created_by is None else
+                                              f' by event {created_by}'))
+        return n
+
+    def _on_cusp(self, idx, xy):
+        """A new cusp point: a node of the other kind beyond it and an edge to it (L, F).
+        A cusp sensed from a vast node where a traced GVD branch of a known narrow node ended
+        is that narrow cell's cusp: the edge joins the known node, no node is created."""
+        n = self.nodes[self.current] if self.current is not None else None
+        if n is None:
+            return
+        m = self._traced_narrow(xy) if n.kind == 'vast' else None
+        if m is not None:
+            self._add_edge(n.id, m.id, xy, f'cusp joins narrow node {m.id}: a traced GVD '
+                           'branch of it ends here')
+            return
+        new = self.create_node('narrow' if n.kind == 'vast' else 'vast', xy, idx)
+        self.edges.append((n.id, new.id, xy) if n.kind == 'vast' else (new.id, n.id, xy))
+        self._note_dir(xy)
+        if new.kind == 'narrow':
+            into = None if self._cusp_dir is None else (math.cos(self._cusp_dir),
+                                                        math.sin(self._cusp_dir))
+            new.branches.append(Branch(xy, into, idx))   # leaves along the cusp's GVD edge
+        if n.kind == 'narrow' and self.mode == 'gvd':
+            self._end_branch('cusp')
+
+    def _traced_narrow(self, xy):
+        """The narrow node whose traced GVD branch ended at this cusp (the cusp event that
+        ended it, or the branch's last point, within ``same_event``), if any."""
+        near = self.cfg.same_event
+        for v, w, c in self.edges:
+            if math.dist(c, xy) < near and self._created_from(v, w, self._cusp_dir):
+                return self.nodes[w]
+        for m in self.nodes:
+            if m.kind == 'narrow' and any(self._arrived(b, xy, near, self._cusp_dir)
+                                          for b in m.branches):
+                return m
+        return None
+
+    def _gvd_direction(self):
+        """Bearing from a cusp into its narrow cell: between its two closest obstacles."""
+        if len(self.mins) < 2:
+            return None
+        (_, a1), (_, a2) = self.mins[:2]
+        v = (math.cos(a1) + math.cos(a2), math.sin(a1) + math.sin(a2))
+        return math.atan2(v[1], v[0]) if math.hypot(*v) > 0.2 else None
+
+    @staticmethod
+    def _arrived(b, xy, near, into):
+        """Branch ``b`` ended at the cusp ``xy`` on the same GVD edge: within ``near`` of it,
+        traced out of the narrow cell opposite to the cusp's bearing ``into`` it (the cusps
+        of a small vast cell lie within a step of one another, each on its own edge)."""
+        if b.end != 'cusp' or b.end_xy is None or math.dist(b.end_xy, xy) >= near:
+            return False
+        if into is None or b.end_heading is None:
+            return True
+        out = math.atan2(b.end_heading[1], b.end_heading[0])
+        return abs(math.remainder(out - into - math.pi, 2 * math.pi)) < math.radians(45)
+
+    def _created_from(self, v, w, into=None):
+        """Vast node ``v`` was created while narrow node ``w`` was traced (its cusp ended a
+        GVD branch of ``w``, on the edge that leaves the cusp along ``into``)."""
+        ev = self.nodes[v].created_by
+        return ev is not None and any(self._arrived(b, self.events[ev][2:4], 1.0, into)
+                                      for b in self.nodes[w].branches)
+
+    def _join_known_cusp(self, xy):
+        """A known cusp sensed while tracing a narrow node: the vast nodes it belongs to get
+        their edge to this node (F of Algorithm 1), once."""
+        n = self.nodes[self.current] if self.current is not None else None
+        if n is None or n.kind != 'narrow' or self.mode != 'gvd':
+            return
+        near = self.cfg.same_event
+        vast = {v for v, _, c in self.edges if math.dist(c, xy) < near}
+        vast |= {m.id for m in self.nodes if m.kind == 'vast' and m.created_by is not None
+                 and math.dist(self.events[m.created_by][2:4], xy) < near}
+        for v in sorted(vast):
+            self._add_edge(v, n.id, xy, f'known cusp: vast node {v} joins narrow node {n.id}')
+
+    def same_node(self, i: int) -> int:
+        """The node that node ``i`` was found to be (a vast node whose cusp lies on another
+        vast node's boundary circuit is that node), else ``i``."""
+        while self.nodes[i].merged_into is not None:
+            i = self.nodes[i].merged_into
+        return i
+
+    def _dedupe_edges(self):
+        """One edge per cusp between a vast node and a narrow node: once two vast nodes are
+        found to be one, an edge of each carrying the same cusp is kept once (the first)."""
+        kept = []
+        for v, w, c in self.edges:
+            if not any(self.same_node(a) == self.same_node(v) and b == w and
+                       math.dist(k, c) < self.cfg.same_event for a, b, k in kept):
+                kept.append((v, w, c))
+        self.edges[:] = kept
+
+    def _add_edge(self, v, w, xy, detail):
+        """Edge (vast v, narrow w) carrying the cusp xy, unless one carries a cusp near it."""
+        if any(self.same_node(a) == self.same_node(v) and b == w and
+               math.dist(c, xy) < self.cfg.same_event for a, b, c in self.edges):
+            return
+        self.edges.append((v, w, (float(xy[0]), float(xy[1]))))
+        self._note_dir(xy)
+        self._record(self.t_sweep, 'cusp_joins', xy, detail)
+
+    def _note_dir(self, xy):
+        if self._cusp_dir is not None:
+            self._cusp_dirs[(round(float(xy[0]), 3), round(float(xy[1]), 3))] = self._cusp_dir

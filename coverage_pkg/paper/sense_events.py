@@ -1,0 +1,92 @@
+"""Event sensing from the sonar ring: cusp points (Section IV-B) and meet points (Section III).
+
+A cusp is sensed where D crosses delta (on the GVD, Fig. 11) or where the closest obstacle
+jumps while following a boundary at D = delta (Fig. 10); a meet point where three closest
+obstacles are equidistant. Each sensed event is dropped if switched off (``without``) or
+filtered, merged with a known one nearby, else recorded and handed to the subroutine it
+belongs to: a cusp to :mod:`coverage_pkg.paper.node_creation`, a meet point to
+:mod:`coverage_pkg.paper.trace_gvd`. Critical points are sensed from a lap's echoes in
+:mod:`coverage_pkg.paper.morse_coverage`.
+"""
+from __future__ import annotations
+
+import math
+
+from coverage_pkg import gvd as gvdmod
+
+
+class EventSensing:
+    """Mixin of :class:`coverage_pkg.algorithm1.PaperPlanner`: events from the ring."""
+
+    def _sense_cusp(self, t, prev):
+        """Cusp point (Section V-B): D crosses delta on the GVD (Fig. 11), or, while following
+        a boundary at D = delta, the closest obstacle jumps to another one (Fig. 10; on a GVD
+        edge the closest obstacle alternates between the two equidistant ones, which is no
+        cusp); placed where both are at delta. On a GVD edge, D must cross delta + 0.015 m:
+        between walls about 2 delta apart, echo noise makes D cross delta back and forth."""
+        xy = None
+        level = self.det + (0.015 if self.mode == 'gvd' else 0.0)
+        if math.isfinite(prev) and (prev <= level) != (self.D <= level):
+            xy = gvdmod.cusp_from_ring(self.pose[:2], self.ranges, self.angles, self.det)
+        bearing = self.mins[0][1] if self.mins else None
+        last, self._near_bearing = self._near_bearing, bearing
+        if xy is None and self.mode == 'boundary' and last is not None and \
+                bearing is not None and abs(self.D - self.det) < 0.3 and \
+                abs(math.remainder(bearing - last, 2 * math.pi)) > math.radians(45):
+            xy = gvdmod.cusp_from_ring(self.pose[:2], self.ranges, self.angles, self.det)
+        if xy is not None:
+            head = self.task.get('heading') if self.mode == 'gvd' else None
+            # traced along its GVD edge: back along the trace is into the narrow cell
+            self._cusp_dir = self._gvd_direction() if head is None else \
+                math.atan2(-head[1], -head[0])
+            self._on_event(t, 'cusp', xy, 'D = delta where two closest obstacles meet')
+            self._cusp_dir = None
+
+    def _sense_meet(self, t):
+        """Meet point (Section III): three closest obstacles equidistant, two sweeps agreeing."""
+        m = gvdmod.meet_from_ring(self.pose[:2], self.ranges, self.angles)
+        if m is None or m[2] > self.det:
+            self._meet_cand = None
+            return
+        prev, self._meet_cand = self._meet_cand, m
+        if prev is not None and math.dist(prev[:2], m[:2]) <= 0.15:
+            self._on_event(t, 'meet', ((m[0] + prev[0]) / 2, (m[1] + prev[1]) / 2),
+                           f'three closest obstacles at {m[2]:.2f} m')
+
+    def _on_event(self, t, kind, xy, detail):
+        """A sensed (or injected) event: dropped if switched off or filtered, merged with a
+        known one nearby; else recorded and handed to the subroutine it belongs to."""
+        if kind in self.cfg.without or (self.event_filter and not self.event_filter(kind, xy)):
+            return None
+        if self._known(kind, xy):
+            if kind == 'cusp':
+                self._join_known_cusp(xy)
+            return None
+        idx = self._record(t, kind, xy, detail)
+        if kind == 'cusp':
+            self._on_cusp(idx, xy)
+        elif kind == 'meet':
+            self._on_meet(idx, xy)
+        return idx
+
+    def _known(self, kind, xy):
+        """An event sensed again. A cusp is known to a vast node only through its own
+        edges: the cusp that ends a narrow cell's GVD edge can lie within a step of the one
+        where a corner's narrow cell meets the same vast cell."""
+        near = self.cfg.same_event
+        n = self.nodes[self.current] if self.current is not None else None
+        if kind == 'critical':
+            return False
+        if kind == 'cusp' and n is not None and n.kind == 'vast':
+            return any(math.dist(c, xy) < near and self._same_edge(c, self._cusp_dir)
+                       for v, _, c in self.edges if self.same_node(v) == n.id)
+        return any(e[1] == kind and math.dist(e[2:4], xy) < near for e in self.events)
+
+    def _same_edge(self, c, into):
+        """The cusp ``c`` lies on the GVD edge leaving along ``into`` (bearing into its narrow
+        cell; unknown either way: the same). A small vast cell's cusps lie within a step of
+        one another, each on its own edge."""
+        known = self._cusp_dirs.get((round(c[0], 3), round(c[1], 3)))
+        if known is None or into is None:
+            return True
+        return abs(math.remainder(known - into, 2 * math.pi)) < math.radians(30)
