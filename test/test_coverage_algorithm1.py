@@ -116,6 +116,27 @@ def test_a_circuit_that_encloses_no_area_senses_its_two_tips_as_cusps():
 
 
 @pytest.mark.slow
+def test_a_door_branch_leaves_through_the_door_not_diagonally_past_a_jamb():
+    """At a meet point in a corridor beside a door (the ring of gen_mixed_609 there), two
+    cones two apart read far through the door and the one between them meets the room's
+    obstacle beyond delta: one gap, whose GVD edge leaves between the two. Taking the first
+    of them sent the branch diagonally past the jamb, back along the corridor, and the room
+    behind the door stayed uncovered."""
+    p = _planner()
+    by_bearing = dict(zip(np.round(np.arange(16) * 22.5 + 6.6, 1),
+                          [3.22, 1.20, 0.81, 0.69, 0.68, 0.73, 0.98, 1.85,
+                           2.69, 1.07, 5.00, 3.56, 5.00, 0.68, 0.82, 1.54]))
+    # the robot's yaw there, and the cones turned so that their order starts at 6.6 deg
+    for angles in (p.mount - 3.0263706143591906, p.mount - p.mount[0] + math.radians(6.6)):
+        p.angles = angles
+        p.ranges = np.array([by_bearing[round(math.degrees(a % (2 * math.pi)), 1)]
+                             for a in p.angles])
+        back = math.radians(14.4)                # the corridor traced so far, behind
+        bearings = p._free_bearings([back], p.det, one_door=True)   # as at a meet point
+        out = sorted(round(math.degrees(b), 1) for b in bearings)
+        assert out == [186.6, 254.1]             # along the corridor; through the door
+
+
 def test_rooms_and_corridor_are_covered_by_sensed_events_alone():
     """The start is vast (D > delta): its boundary circuit senses the room's corner cusps and
     the corridor's; every other node was created by one of those cusp events, and each edge

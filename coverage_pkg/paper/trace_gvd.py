@@ -168,7 +168,7 @@ class TraceGVD:
         n.meets.append((float(xy[0]), float(xy[1]), idx))
         head = np.asarray(self.task.get('heading') or self.task['branch'].heading or (1.0, 0.0))
         back = math.atan2(-head[1], -head[0])
-        out = self._free_bearings([back], self.det)
+        out = self._free_bearings([back], self.det, one_door=True)
         if not out:
             return
         out.sort(key=lambda m: abs(math.remainder(m - math.atan2(head[1], head[0]),
@@ -179,25 +179,38 @@ class TraceGVD:
         self.task['meet'] = idx
         self.task['leave'] = self.pose[:2]
 
-    def _free_bearings(self, exclude, beyond):
+    def _free_bearings(self, exclude, beyond, one_door=False):
         """Bearings of the GVD edges leaving the robot's place: local maxima of the ring's
         range over bearing (a gap between two closest obstacles) reaching beyond ``beyond``
         (an edge whose end is in the detector's view is not one to trace), at least 60
-        degrees from each bearing of ``exclude`` and 45 degrees from one another."""
-        out = []
+        degrees from each bearing of ``exclude`` and 45 degrees from one another. With
+        ``one_door`` (at a meet point, its closest obstacles within delta), two maxima two
+        cones apart with the cone between them also beyond ``beyond`` are one gap (a door
+        seen from beside it: the cone between meets something far behind the door): its edge
+        leaves along their mean bearing, between the two, not along the first of them, which
+        runs diagonally past a jamb."""
         r = np.where(np.isfinite(self.ranges), self.ranges, 0.0)
         k = len(r)
         order = np.argsort(self.angles % (2 * math.pi))
         r, ang = r[order], (self.angles % (2 * math.pi))[order]
+        gaps = []                                    # (cone, bearing) per gap
         for i in range(k):
             if r[i] < r[i - 1] or r[i] < r[(i + 1) % k] or r[i] <= beyond:
                 continue
-            if any(abs(math.remainder(ang[i] - e, 2 * math.pi)) < math.radians(60)
+            if one_door and gaps and gaps[-1][0] == i - 2 and r[i - 1] > beyond:
+                a = gaps[-1][1]
+                gaps[-1] = (None, float((a + math.remainder(ang[i] - a, 2 * math.pi) / 2)
+                                        % (2 * math.pi)))
+            else:
+                gaps.append((i, float(ang[i])))
+        out = []
+        for _, b in gaps:
+            if any(abs(math.remainder(b - e, 2 * math.pi)) < math.radians(60)
                    for e in exclude):
                 continue
-            if all(abs(math.remainder(ang[i] - o, 2 * math.pi)) > math.radians(45)
+            if all(abs(math.remainder(b - o, 2 * math.pi)) > math.radians(45)
                    for o in out):
-                out.append(float(ang[i]))
+                out.append(b)
         return out
 
     def _end_branch(self, how):
