@@ -123,3 +123,24 @@ def _ray_distance_compiled(trunk: Trunk, arrays: tuple, o: np.ndarray, d: np.nda
         s_hit = closest(o + np.where(np.isfinite(out), out, 0.0)[:, None] * d)[0]
         out = np.where((s_hit <= 0.0) | (s_hit >= length), np.inf, out)
     return np.where(inside, 0.0, out), s_o
+
+
+class CompiledTrunk(Trunk):
+    """A :class:`Trunk` whose closest-point query runs the compiled refinement of
+    :mod:`climber_pkg.cone_cast_numba` after the same KD-tree query (when numba is installed):
+    the same arc lengths and distances bit for bit (``test/test_climber_graph.py::
+    test_compiled_trunk_closest_points_equal_the_trunk_ones``), for evaluations that query
+    many points often (``paramotion climb``'s ground-truth monitor)."""
+
+    def closest(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        if resolve_backend('auto') != 'numba':
+            return super().closest(points)
+        from climber_pkg import cone_cast_numba as kernels
+        pts = np.asarray(points, dtype=float)
+        flat = np.ascontiguousarray(pts.reshape(-1, 3))
+        tree, ts, samples, _, _ = _trunk_arrays(self)
+        idx = tree.query(flat)[1]
+        s_out, d_out = np.empty(len(flat)), np.empty(len(flat))
+        kernels.closest_refine(flat, idx, ts, samples, s_out, d_out)
+        shape = pts.shape[:-1]
+        return s_out.reshape(shape), d_out.reshape(shape)

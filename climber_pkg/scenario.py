@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from climber_pkg import evaluation as ev
+from climber_pkg.cone_cast import CompiledTrunk
 from climber_pkg.gait import APPROACHES, CONSTRUCTS, parse_without
 from climber_pkg.robot import RobotConfig, load_robot_config
 from climber_pkg.trunk import Trunk
@@ -213,7 +214,9 @@ def run_climb(trunk_file: str | Path, bag_dir: str | Path | None = None, delta: 
     from paramotion.graph import Graph
     from paramotion.launch import graph_from_launch
 
-    trunk = Trunk.from_file(trunk_file)
+    # The evaluation queries the structure's closest points often: the compiled query (the
+    # same figures bit for bit).
+    trunk = CompiledTrunk.from_file(trunk_file)
     robot = load_robot_config(robot_config or None)
     check_trunk_fits(trunk, robot, trunk_file)
     if not 0.0 <= start_s <= trunk.length - geom_span(robot):

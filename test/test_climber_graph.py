@@ -207,3 +207,21 @@ def test_batched_cone_distances_equal_the_trunk_cones():
                 assert np.array_equal(got, want), (name, k, backend, got, want)
             finite += int(np.isfinite(want).sum())
     assert finite > 300          # most cones see the structure: echoes are compared, not infs
+
+
+def test_compiled_trunk_closest_points_equal_the_trunk_ones():
+    """paramotion climb's evaluation queries closest points with the compiled refinement:
+    the same arc lengths and distances bit for bit, for points near and far from the axis,
+    past both ends, single points and batches."""
+    from climber_pkg.cone_cast import CompiledTrunk
+    rng = np.random.default_rng(7)
+    for name in ('straight_palm', 's_bend_pipe', 'leaning_palm'):
+        path = f'climber_pkg/trunks/{name}.json'
+        plain, compiled = Trunk.from_file(path), CompiledTrunk.from_file(path)
+        lo, hi = plain.points.min(axis=0) - 0.5, plain.points.max(axis=0) + 0.5
+        batch = rng.uniform(lo, hi, (400, 3))
+        near = plain.points[rng.integers(len(plain.points), size=200)] + rng.normal(
+            0.0, 0.05, (200, 3))
+        for pts in (batch, near, near.reshape(10, 20, 3), near[0]):
+            for got, want in zip(compiled.closest(pts), plain.closest(pts)):
+                assert got.shape == want.shape and np.array_equal(got, want), name
