@@ -20,8 +20,11 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True, error_model='numpy')
-def cable_wrench(r, anchors, mask, position, lin, ang, unstretched, unstretched_rates, EA,
-                 damping, force, torque, tensions, lengths, slack):
+def cable_wrench(r: np.ndarray, anchors: np.ndarray, mask: np.ndarray, position: np.ndarray,
+                 lin: np.ndarray, ang: np.ndarray, unstretched: np.ndarray,
+                 unstretched_rates: np.ndarray, EA: np.ndarray, damping: np.ndarray,
+                 force: np.ndarray, torque: np.ndarray, tensions: np.ndarray,
+                 lengths: np.ndarray, slack: np.ndarray) -> None:
     """Fill ``force`` (3,), ``torque`` (3,), ``tensions``, ``lengths`` and ``slack`` (n,).
 
     ``r``: attachment offsets (n, 3) in world axes; ``anchors`` (n, k, 3) and ``mask`` (n, k):
