@@ -4,12 +4,10 @@ three sensors at a time, with fewer closest-point queries and optionally compile
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from scipy.spatial import cKDTree
 
-from climber_pkg.trunk import Trunk
+from climber_pkg.trunk import Trunk, cone_rim
 from paramotion.backend import resolve_backend
 
 #: Rays sampling the rim of each cone (the default of :meth:`Trunk.cone_distance`).
@@ -36,14 +34,7 @@ def cone_distances(trunk: Trunk, origins: np.ndarray, directions: np.ndarray,
     cone = field_of_view > 0
     if cone:
         half = 0.5 * float(field_of_view)
-        helper = np.where(np.abs(d[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
-        e1 = np.cross(d, helper)
-        e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
-        e2 = np.cross(d, e1)
-        ang = np.linspace(0.0, 2 * np.pi, rim_rays, endpoint=False)
-        rim = (math.cos(half) * d[:, None, :]
-               + math.sin(half) * (np.cos(ang)[None, :, None] * e1[:, None, :]
-                                   + np.sin(ang)[None, :, None] * e2[:, None, :]))
+        rim = cone_rim(d, field_of_view, rim_rays)
         rays_o = np.concatenate([o, np.repeat(o, rim_rays, axis=0)])
         rays_d = np.concatenate([d, rim.reshape(-1, 3)])
     else:
@@ -63,18 +54,7 @@ def cone_distances(trunk: Trunk, origins: np.ndarray, directions: np.ndarray,
     if not cone:
         return dist
     best = np.minimum(dist[:n], dist[n:].reshape(n, rim_rays).min(axis=1))
-    s, _ = trunk.closest(o)
-    w = o - trunk.point_at(s)
-    a = trunk.tangent_at(s)
-    wp = w - np.einsum('ij,ij->i', w, a)[:, None] * a
-    dist_axis = np.linalg.norm(wp, axis=1)
-    with np.errstate(invalid='ignore', divide='ignore'):
-        toward = -wp / dist_axis[:, None]
-        inside_cone = np.einsum('ij,ij->i', toward, d) >= math.cos(half)
-    near = dist_axis - trunk.radius_at(s)
-    ok = (inside_cone & (s > 0.0) & (s < trunk.length) & (near >= 0.0) & (near <= max_range)
-          & (dist_axis > 1e-9))
-    return np.where(ok, np.minimum(best, near), best)
+    return trunk.perpendicular_echo(o, d, field_of_view, max_range, best)
 
 
 def _trunk_arrays(trunk: Trunk) -> tuple:

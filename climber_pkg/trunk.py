@@ -226,9 +226,7 @@ class Trunk:
         del dist0
         return out
 
-
     def cone_distance(self, origins: ArrayLike, directions: ArrayLike, field_of_view: float,
-
                       max_range: float, boundary_rays: int = 24) -> np.ndarray:
         """Nearest echo within each sensor's cone (n, 3): +inf when none within max_range.
 
@@ -246,18 +244,20 @@ class Trunk:
         best = self.ray_distance(o, d, max_range)
         if not field_of_view > 0:
             return best
-        half = 0.5 * float(field_of_view)
-        helper = np.where(np.abs(d[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
-        e1 = np.cross(d, helper)
-        e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
-        e2 = np.cross(d, e1)
-        ang = np.linspace(0.0, 2 * np.pi, boundary_rays, endpoint=False)
-        rim = (math.cos(half) * d[:, None, :]
-               + math.sin(half) * (np.cos(ang)[None, :, None] * e1[:, None, :]
-                                   + np.sin(ang)[None, :, None] * e2[:, None, :]))
+        rim = cone_rim(d, field_of_view, boundary_rays)
         rim_d = self.ray_distance(np.repeat(o, boundary_rays, axis=0), rim.reshape(-1, 3),
                                   max_range).reshape(len(o), boundary_rays)
         best = np.minimum(best, rim_d.min(axis=1))
+        return self.perpendicular_echo(o, d, field_of_view, max_range, best)
+
+    def perpendicular_echo(self, origins: np.ndarray, directions: np.ndarray,
+                           field_of_view: float, max_range: float,
+                           best: np.ndarray) -> np.ndarray:
+        """``best`` (n,) lowered to the perpendicular distance to the tube where the
+        perpendicular from the sensor to the axis lies inside its cone (unit ``directions``):
+        the nearest echo of a locally straight tube seen from outside."""
+        o, d = origins, directions
+        half = 0.5 * float(field_of_view)
         s, _ = self.closest(o)
         w = o - self.point_at(s)
         a = self.tangent_at(s)
@@ -270,6 +270,21 @@ class Trunk:
         ok = (inside_cone & (s > 0.0) & (s < self.length) & (near >= 0.0) & (near <= max_range)
               & (dist_axis > 1e-9))
         return np.where(ok, np.minimum(best, near), best)
+
+
+def cone_rim(directions: np.ndarray, field_of_view: float, rays: int) -> np.ndarray:
+    """Unit directions (n, rays, 3) of ``rays`` rays evenly around the rim of each sensor's
+    cone (full apex angle ``field_of_view``, rad) about its unit centre ``directions`` (n, 3)."""
+    d = directions
+    half = 0.5 * float(field_of_view)
+    helper = np.where(np.abs(d[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    e1 = np.cross(d, helper)
+    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+    e2 = np.cross(d, e1)
+    ang = np.linspace(0.0, 2 * np.pi, rays, endpoint=False)
+    return (math.cos(half) * d[:, None, :]
+            + math.sin(half) * (np.cos(ang)[None, :, None] * e1[:, None, :]
+                                + np.sin(ang)[None, :, None] * e2[:, None, :]))
 
 
 def _validate_centerline(centerline, source):
