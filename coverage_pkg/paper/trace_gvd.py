@@ -184,11 +184,11 @@ class TraceGVD:
         range over bearing (a gap between two closest obstacles) reaching beyond ``beyond``
         (an edge whose end is in the detector's view is not one to trace), at least 60
         degrees from each bearing of ``exclude`` and 45 degrees from one another. With
-        ``one_door`` (at a meet point, its closest obstacles within delta), two maxima two
-        cones apart with the cone between them also beyond ``beyond`` are one gap (a door
-        seen from beside it: the cone between meets something far behind the door): its edge
-        leaves along their mean bearing, between the two, not along the first of them, which
-        runs diagonally past a jamb."""
+        ``one_door`` (at a meet point), two maxima two cones apart with the cone between them
+        also beyond ``beyond`` and the cones on either side of the three within it are one
+        gap: a door seen from beside it, its jambs within ``beyond`` and the cone between
+        meeting something behind the door. Its edge leaves along their mean bearing, between
+        the two, not along the first of them, which runs diagonally past a jamb."""
         r = np.where(np.isfinite(self.ranges), self.ranges, 0.0)
         k = len(r)
         order = np.argsort(self.angles % (2 * math.pi))
@@ -197,7 +197,8 @@ class TraceGVD:
         for i in range(k):
             if r[i] < r[i - 1] or r[i] < r[(i + 1) % k] or r[i] <= beyond:
                 continue
-            if one_door and gaps and gaps[-1][0] == i - 2 and r[i - 1] > beyond:
+            if one_door and gaps and gaps[-1][0] == i - 2 and r[i - 1] > beyond and \
+                    r[i - 3] <= beyond and r[(i + 1) % k] <= beyond:
                 a = gaps[-1][1]
                 gaps[-1] = (None, float((a + math.remainder(ang[i] - a, 2 * math.pi) / 2)
                                         % (2 * math.pi)))
