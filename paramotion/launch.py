@@ -200,11 +200,11 @@ def graph_from_launch(graph: Graph, name: str, launch_args: dict[str, object] | 
 
 # --------------------------------------------------------------------------- processes
 def _sigint_default():
-    """Child set-up: SIGINT back to its default (see :func:`_child_setup`)."""
+    """Child set-up: SIGINT back to its default (see :func:`child_setup`)."""
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
-def _child_setup():
+def child_setup() -> Callable[[], None] | None:
     """``preexec_fn`` for a node process: none, unless this process ignores SIGINT (started as
     a background job by a shell without job control). A node inherits an ignored SIGINT and
     then rightly keeps ignoring it; a launcher is the node's terminal, so its nodes start with
@@ -228,7 +228,7 @@ class _Proc:
     def start(self):
         self.handled = False
         self.popen = subprocess.Popen(self.cmd, env=self.env, stdout=subprocess.PIPE,
-                                      stderr=subprocess.PIPE, preexec_fn=_child_setup(),
+                                      stderr=subprocess.PIPE, preexec_fn=child_setup(),
                                       start_new_session=self.own_session)
         self.threads = [threading.Thread(target=self._pump, args=(stream, show), daemon=True)
                         for stream, show in ((self.popen.stdout,
@@ -523,7 +523,7 @@ class NodeProcess:
         self._log = open(log_path, 'wb') if log_path else subprocess.DEVNULL
         self.proc = subprocess.Popen(args, env={**os.environ, **(env or {})},
                                      stdout=self._log, stderr=subprocess.STDOUT,
-                                     preexec_fn=_child_setup(), start_new_session=True)
+                                     preexec_fn=child_setup(), start_new_session=True)
 
     def interrupt(self, timeout: float = 10.0) -> int | None:
         """SIGINT (clean shutdown), then SIGKILL if it does not exit within ``timeout``."""

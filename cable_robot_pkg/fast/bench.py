@@ -226,7 +226,7 @@ def bench_processes(wall_s: float = 40.0, real_time_factor: float = 1.0,
     """
     from cable_robot_pkg.fast.configuration import load_config
     from cable_robot_pkg.fast.scenario import bag_series, evaluate
-    from paramotion.launch import find_executable, node_command
+    from paramotion.launch import child_setup, find_executable, node_command
     from paramotion.launch_xml import load as load_launch
 
     with tempfile.TemporaryDirectory(prefix='fast_bench_') as tmp:
@@ -255,7 +255,7 @@ def bench_processes(wall_s: float = 40.0, real_time_factor: float = 1.0,
                 logs.append(log)
                 procs[action.label] = subprocess.Popen(
                     cmd, env={**env, **action.env}, stdout=log, stderr=subprocess.STDOUT,
-                    start_new_session=True)
+                    preexec_fn=child_setup(), start_new_session=True)
             time.sleep(wall_s)
         finally:
             exits = _stop(procs)
