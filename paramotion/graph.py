@@ -13,7 +13,7 @@ from __future__ import annotations
 import os
 import random
 import time
-from collections import deque
+from collections import defaultdict, deque
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any, Literal, TypeVar
@@ -30,6 +30,7 @@ from rclpy.executors import (
 from rclpy.experimental.events_executor import EventsExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy
 from rclpy.serialization import deserialize_message
 from rclpy.subscription import Subscription
 
@@ -683,7 +684,6 @@ class InProcessDelivery:
             self._key = key
 
     def _route(self, nodes: list[Node]) -> None:
-        from collections import defaultdict
         topics = defaultdict(lambda: ([], []))
         for node in nodes:
             for pub in node.publishers:
@@ -762,7 +762,6 @@ def _in_process_topic(pubs: list, subs: list) -> bool:
     """True when the graph's nodes are the only publishers and readers of the topic and no
     reader needs what only the middleware gives (raw bytes, message info, history for a late
     joiner)."""
-    from rclpy.qos import DurabilityPolicy, HistoryPolicy
     msg_type = pubs[0].msg_type
     for pub in pubs:
         if pub.msg_type is not msg_type or \
@@ -781,7 +780,6 @@ def _in_process_topic(pubs: list, subs: list) -> bool:
 
 def _depth(sub: Subscription) -> int:
     """The reader's queue length (0: unbounded, ``KEEP_ALL``)."""
-    from rclpy.qos import HistoryPolicy
     qos = sub.qos_profile
     return max(1, qos.depth) if qos.history == HistoryPolicy.KEEP_LAST else 0
 
