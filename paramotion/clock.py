@@ -33,6 +33,19 @@ def stamp_from_ns(ns: int) -> Time:
     return Time(sec=int(ns // NS), nanosec=int(ns % NS))
 
 
+def take_time_source(node: Any) -> Any | None:
+    """The time source of ``node`` on sim time, its own ``/clock`` subscription dropped, for a
+    caller that hands it each ``/clock`` message itself (``source.clock_callback``): the lock-step
+    Graph and a component container. None when the node is not on sim time."""
+    source = getattr(node, '_time_source', None)
+    if source is None or not source.ros_time_is_active:
+        return None
+    if source._clock_sub is not None:
+        node.destroy_subscription(source._clock_sub)
+        source._clock_sub = None
+    return source
+
+
 class ClockSourceNode(ParamotionNode):
     """Base of nodes that own simulated time and publish ``/clock``."""
 

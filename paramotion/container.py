@@ -43,6 +43,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock as ClockMsg
 
+from paramotion.clock import take_time_source
 from paramotion.node import Param, ParamotionNode, overrides_from_dict
 
 _NAME_RULES = ('__node', '__name', '__ns')
@@ -169,11 +170,8 @@ class ContainerClock:
         self.sources = []
         self.ticks = 0
         for node in self.nodes:
-            source = node._time_source
-            if source.ros_time_is_active and source not in self.sources:
-                if source._clock_sub is not None:
-                    node.destroy_subscription(source._clock_sub)
-                    source._clock_sub = None
+            source = take_time_source(node)
+            if source is not None and source not in self.sources:
                 self.sources.append(source)
         self.subscription = owner.create_subscription(ClockMsg, '/clock', self.on_clock,
                                                       CONTAINER_CLOCK_QOS)

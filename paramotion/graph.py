@@ -34,7 +34,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy
 from rclpy.serialization import deserialize_message
 from rclpy.subscription import Subscription
 
-from paramotion.clock import ClockSourceNode
+from paramotion.clock import ClockSourceNode, take_time_source
 from paramotion.node import overrides_from_dict
 
 if TYPE_CHECKING:
@@ -375,13 +375,9 @@ class Graph:
             clock_source.clock_hooks.append(self._deliver_time)
             self._direct_source = clock_source
         for node in self.nodes:
-            source = getattr(node, '_time_source', None)
-            if source is None or source in self._direct_time or \
-                    source._clock_sub is None or not source.ros_time_is_active:
-                continue
-            node.destroy_subscription(source._clock_sub)
-            source._clock_sub = None
-            self._direct_time.append(source)
+            source = take_time_source(node)
+            if source is not None and source not in self._direct_time:
+                self._direct_time.append(source)
 
     def _deliver_time(self, msg: ClockMsg) -> None:
         for source in self._direct_time:
