@@ -125,18 +125,23 @@ def spin_node(node: Node, kind: str | None = None,
     executor = make_executor('single_threaded' if kind == 'waitset' else kind, node.context)
     for each in nodes:
         executor.add_node(each)
-    if kind == 'waitset':
-        LockstepDrain(executor, node.context).spin(stop)
-        return
-    if kind == 'single_threaded':
-        while node.context.ok():
-            executor.spin_once()
-        return
-    while node.context.ok() and not (stop is not None and stop()):
-        # One callback (or 0.1 s) per call, not a longer run: rclpy 7.1.6's event queue runs
-        # past a deadline for as long as events keep arriving, so a busy node spun that way
-        # would never come back to check stop().
-        executor.spin_once(timeout_sec=0.1)
+    try:
+        if kind == 'waitset':
+            LockstepDrain(executor, node.context).spin(stop)
+            return
+        if kind == 'single_threaded':
+            while node.context.ok():
+                executor.spin_once()
+            return
+        while node.context.ok() and not (stop is not None and stop()):
+            # One callback (or 0.1 s) per call, not a longer run: rclpy 7.1.6's event queue
+            # runs past a deadline for as long as events keep arriving, so a busy node spun
+            # that way would never come back to check stop().
+            executor.spin_once(timeout_sec=0.1)
+    finally:
+        # Release the nodes here, while the context still exists, rather than whenever the
+        # executor is collected (the C++ events executor then still holds their handles).
+        executor.shutdown(timeout_sec=1.0)
 
 
 def private_domain_id() -> int:

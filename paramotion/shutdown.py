@@ -19,8 +19,11 @@ rclpy's own handler (which shuts the context down and wakes the executor) chains
   process: Python resets a Python-level handler to the default one while the interpreter
   finalises, and a signal arriving then would still kill the process.
 
-SIGKILL, and launch's escalation to it, remain the way to stop a process that hangs; ``kill -USR1
-PID`` prints where each of its threads is (``faulthandler``), to see why.
+SIGKILL, and launch's escalation to it, remain the way to stop a process that hangs. So that a
+hang says where it is, a process still alive :data:`HANG_REPORT_S` seconds after the first signal
+prints the stack of each of its threads to stderr (``faulthandler``, which needs no Python code to
+run: it reports a thread stuck in C++ holding the interpreter lock too); ``kill -USR1 PID`` prints
+them at any time.
 
 :func:`exit_now` ends a node process once the node is destroyed and its context shut down (the
 DDS participant and its shared-memory segments are gone by then): it flushes every output
@@ -45,6 +48,10 @@ if TYPE_CHECKING:
     from rclpy.signals import SignalHandlerOptions
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+#: Seconds after the first SIGINT/SIGTERM at which a process not yet gone prints its threads'
+#: stacks: just before ``ros2 launch`` escalates to SIGTERM (its ``sigterm_timeout``, 5 s).
+HANG_REPORT_S = 4.5
 
 
 class ShutdownSignals:
@@ -95,8 +102,10 @@ class ShutdownSignals:
 
     def _handle(self, signum, frame):
         self.received.append(signum)
-        if self.interrupt and len(self.received) == 1:
-            raise KeyboardInterrupt
+        if len(self.received) == 1:
+            faulthandler.dump_traceback_later(HANG_REPORT_S)
+            if self.interrupt:
+                raise KeyboardInterrupt
 
     def finish(self) -> None:
         """Ignore both signals from now on (the process is about to exit)."""
@@ -107,6 +116,7 @@ class ShutdownSignals:
     def restore(self) -> None:
         """Put back the handlers found by :meth:`install` (for use inside a longer program)."""
         self.interrupt = False
+        faulthandler.cancel_dump_traceback_later()
         for sig, handler in self._previous.items():
             signal.signal(sig, handler)
         self._previous.clear()

@@ -219,3 +219,43 @@ def _readable(bag):
         return len(read_messages(bag, ['/test/chatter']))
     except Exception:   # a chunk being written
         return 0
+
+
+def test_a_process_still_alive_after_a_signal_prints_where_its_threads_are(tmp_path):
+    """A clean-up that hangs (here: a sleep standing in for a stuck call) prints the stack of
+    each thread before launch escalates, so a hang in the field says where it is."""
+    script = tmp_path / 'hang.py'
+    script.write_text(
+        'import os, signal, time\n'
+        'import paramotion.shutdown as s\n'
+        's.HANG_REPORT_S = 0.5\n'
+        'signals = s.ShutdownSignals().install()\n'
+        'signals.spinning()\n'
+        'def stuck_in_cleanup():\n'
+        '    time.sleep(1.5)\n'
+        'os.kill(os.getpid(), signal.SIGINT)\n'
+        'stuck_in_cleanup()\n'
+        'signals.finish()\n'
+        's.exit_now(0)\n')
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                          timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert 'Timeout (0:00:00.500000)!' in done.stderr, done.stderr
+    assert 'stuck_in_cleanup' in done.stderr, done.stderr
+
+
+def test_a_process_that_stops_in_time_prints_no_stacks(tmp_path):
+    script = tmp_path / 'quick.py'
+    script.write_text(
+        'import os, signal, time\n'
+        'import paramotion.shutdown as s\n'
+        's.HANG_REPORT_S = 1.0\n'
+        'signals = s.ShutdownSignals().install()\n'
+        'signals.spinning()\n'
+        'os.kill(os.getpid(), signal.SIGINT)\n'
+        'time.sleep(0.2)\n'
+        'signals.finish()\n'
+        's.exit_now(0)\n')
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                          timeout=60)
+    assert done.returncode == 0 and done.stderr == '', done.stderr
