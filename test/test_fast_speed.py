@@ -242,3 +242,98 @@ def test_graph_levers_leave_the_fast_run_bit_identical(monkeypatch):
     assert len(ref['t']) == 60 and np.ptp(np.array(ref['legs'])) > 0.0
     for key in ref:
         assert np.array_equal(ref[key], fast[key]), key
+
+
+def test_refilled_messages_equal_new_ones_and_read_back_the_same():
+    """The simulator, tracker and isolation controller refill one message per topic; the
+    helpers write float64 arrays in bulk and read them back by position when the names are in
+    order: the same bytes and values as a new message filled field by field."""
+    import array
+
+    from builtin_interfaces.msg import Time
+    from geometry_msgs.msg import PoseStamped
+    from rclpy.serialization import serialize_message
+    from sensor_msgs.msg import JointState
+
+    from cable_robot_pkg.fast.ros_messages import (
+        LEG_NAMES,
+        joint_state_msg,
+        joint_vector,
+        pose_from_msg,
+        pose_msg,
+    )
+    from paramotion.rotations import matrix_from_quat, matrix_from_rotvec, quat_from_matrix
+    rng = np.random.default_rng(11)
+    kept_pose, kept_joints = PoseStamped(), JointState()
+    for k in range(50):
+        stamp = Time(sec=k, nanosec=5_000_000 * k)
+        p, R = rng.normal(size=3), matrix_from_rotvec(rng.normal(size=3))
+        want = PoseStamped()
+        want.header.stamp, want.header.frame_id = stamp, 'map'
+        want.pose.position.x, want.pose.position.y, want.pose.position.z = (float(v) for v in p)
+        o = want.pose.orientation
+        o.x, o.y, o.z, o.w = (float(v) for v in quat_from_matrix(R))
+        got = pose_msg(stamp, 'map', p, R, msg=kept_pose)
+        assert got is kept_pose
+        assert serialize_message(got) == serialize_message(want)
+        back_p, back_R = pose_from_msg(got)
+        assert np.array_equal(back_p, p)
+        assert np.array_equal(back_R, matrix_from_quat([o.x, o.y, o.z, o.w]))
+        q, v, f = (rng.normal(size=6) for _ in range(3))
+        want = JointState()
+        want.header.stamp, want.name = stamp, list(LEG_NAMES)
+        want.position, want.velocity, want.effort = ([float(x) for x in a] for a in (q, v, f))
+        got = joint_state_msg(stamp, LEG_NAMES, q, v, f, msg=kept_joints)
+        assert isinstance(got.position, array.array)
+        assert serialize_message(got) == serialize_message(want)
+        for field, a in (('position', q), ('velocity', v), ('effort', f)):
+            assert np.array_equal(joint_vector(got, LEG_NAMES, field), a)   # names in order
+            shuffled = list(reversed(LEG_NAMES))                            # by name
+            assert np.array_equal(joint_vector(got, shuffled, field), a[::-1])
+    assert joint_vector(kept_joints, LEG_NAMES + ['leg7']) is None
+    nan_msg = PoseStamped()
+    nan_msg.pose.orientation.w = math.nan
+    assert np.isnan(pose_from_msg(nan_msg)[1]).all()
+    zero = PoseStamped()
+    zero.pose.orientation.w = 0.0
+    assert np.isnan(pose_from_msg(zero)[1]).all()          # zero quaternion
+
+
+def test_history_lookups_by_bisection_equal_the_linear_search():
+    """``TargetHistory.at`` bisects the target times while they increase (the trajectory's
+    stamps) and walks the items otherwise; ``SampleHistory.at`` bisects its times: both give
+    what the walk over every item gives."""
+    from cable_robot_pkg.fast.isolation import SampleHistory, TargetHistory
+    rng = np.random.default_rng(4)
+    for ordered in (True, False):
+        hist, walk = TargetHistory(), TargetHistory()
+        t = 0.0
+        for _ in range(250):
+            t += rng.choice([0.01, 0.0, 0.004]) if ordered else rng.normal(0.01, 0.01)
+            p, R = rng.normal(size=3), rng.normal(size=(3, 3))
+            hist.add(t, p, R)
+            walk.add(t, p, R)
+            walk.ordered = False                  # force the walk over every item
+            assert hist.ordered == ordered or not ordered
+            for q in (t - 0.02, t - 0.5, t + 0.1, t - 2.0, t, t - rng.random()):
+                a, b = hist.at(q), walk.at(q)
+                assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
+        assert hist.ordered == ordered
+    samples = SampleHistory()
+    t = 0.0
+    for _ in range(300):
+        t += abs(rng.normal(0.005, 0.003))
+        samples.add(t, rng.normal(size=6))
+        times, values = list(samples.times), list(samples.values)
+        for q in (t - 0.02, t - 0.3, t + 0.01, t - rng.random() * 0.5):
+            got = samples.at(q)
+            k = int(np.searchsorted(np.array(times), q))
+            if got is None:
+                assert q < times[0] - 0.02 or q > times[-1] + 0.02
+                continue
+            if 0 < k < len(times):
+                w = (q - times[k - 1]) / max(times[k] - times[k - 1], 1e-12)
+                want = (1.0 - w) * values[k - 1] + w * values[k]
+            else:
+                want = values[0] if k <= 0 else values[-1]
+            assert np.array_equal(got, want)

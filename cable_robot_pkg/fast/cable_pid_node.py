@@ -106,12 +106,12 @@ class CablePidNode(ParamotionNode):
 
     def _on_target(self, msg):
         p, R = pose_from_msg(msg)
-        if np.all(np.isfinite(p)) and np.all(np.isfinite(R)):
+        if np.isfinite(p).all() and np.isfinite(R).all():
             self.target = (p, R)
 
     def _on_trolley(self, msg):
         p, R = pose_from_msg(msg)
-        if np.all(np.isfinite(p)) and np.all(np.isfinite(R)):
+        if np.isfinite(p).all() and np.isfinite(R).all():
             self.trolley = (p, R)
             self.trolley_arrival = self._now()
 

@@ -55,6 +55,7 @@ reports ``holding``; when measurements return it re-initialises the predictor an
 """
 from __future__ import annotations
 
+import bisect
 import math
 from collections import deque
 from collections.abc import Iterable
@@ -222,8 +223,9 @@ class ConstantAccelerationKF:
             self.t = t
         S = self.P[0, 0] + self.r
         K = self.P[:, 0] / S
-        self.x = self.x + np.outer(K, np.asarray(z) - self.x[0])
-        self.P = self.P - np.outer(K, self.P[0])
+        Kc = K[:, None]          # np.outer(K, v) is K[:, None] * v[None, :]
+        self.x = self.x + Kc * (np.asarray(z) - self.x[0])[None, :]
+        self.P = self.P - Kc * self.P[0][None, :]
 
     def predict(self, t: float, order: int = 2) -> np.ndarray:
         """State [p, v, a] (3, m) extrapolated to time ``t`` (no update); ``order`` 1
@@ -462,7 +464,7 @@ class PosePredictor:
         different sensor chains) are all fused."""
         position = np.asarray(position, float)
         rotation = np.asarray(rotation, float)
-        if not (np.all(np.isfinite(position)) and np.all(np.isfinite(rotation))):
+        if not (np.isfinite(position).all() and np.isfinite(rotation).all()):
             return False
         if self.last_stamp is not None and stamp < self.last_stamp:
             return False
@@ -497,12 +499,18 @@ class TargetHistory:
 
     def __init__(self, horizon: float = 1.0):
         self.items = deque()
+        self.times = deque()      # the items' times, for bisection while they increase
+        self.ordered = True       # every time at or after the one before
         self.horizon = horizon
 
     def add(self, t: float, position: ArrayLike, rotation: ArrayLike) -> None:
+        if self.items and t < self.items[-1][0]:
+            self.ordered = False
         self.items.append((t, np.asarray(position, float), np.asarray(rotation, float)))
+        self.times.append(t)
         while len(self.items) > 2 and self.items[-1][0] - self.items[0][0] > self.horizon:
             self.items.popleft()
+            self.times.popleft()
 
     def latest(self) -> tuple[float, np.ndarray, np.ndarray] | None:
         return self.items[-1] if self.items else None
@@ -514,12 +522,21 @@ class TargetHistory:
         prev = self.items[0]
         if t <= prev[0]:
             return prev[1], prev[2]
-        for item in self.items:
-            if item[0] >= t:
+        if self.ordered:
+            # The first item at or after ``t`` and the one before it, found by bisection.
+            k = bisect.bisect_left(self.times, t)
+            if k < len(self.items):
+                prev, item = self.items[k - 1], self.items[k]
                 w = (t - prev[0]) / max(item[0] - prev[0], 1e-12)
                 rot = item[2] if w > 0.5 else prev[2]
                 return prev[1] + w * (item[1] - prev[1]), rot
-            prev = item
+        else:
+            for item in self.items:
+                if item[0] >= t:
+                    w = (t - prev[0]) / max(item[0] - prev[0], 1e-12)
+                    rot = item[2] if w > 0.5 else prev[2]
+                    return prev[1] + w * (item[1] - prev[1]), rot
+                prev = item
         last = self.items[-1]
         return last[1], last[2]
 
@@ -615,7 +632,7 @@ class SampleHistory:
 
     def add(self, t: float, value: ArrayLike) -> None:
         value = np.asarray(value, float)
-        if not np.all(np.isfinite(value)) or (self.times and t < self.times[-1]):
+        if not np.isfinite(value).all() or (self.times and t < self.times[-1]):
             return
         self.times.append(t)
         self.values.append(value)
@@ -627,8 +644,8 @@ class SampleHistory:
         """Linearly interpolated value at ``t`` (None when ``t`` is not covered)."""
         if not self.times or t < self.times[0] - tolerance or t > self.times[-1] + tolerance:
             return None
-        times = np.fromiter(self.times, float)
-        k = int(np.searchsorted(times, t))
+        times = self.times
+        k = bisect.bisect_left(times, t)          # np.searchsorted's index (side 'left')
         if k <= 0:
             return self.values[0]
         if k >= len(times):
@@ -967,7 +984,7 @@ class IsolationController:
         (``predictive``); ignored by ``cheng`` and without tracker feedback."""
         position = np.asarray(position, float)
         rotation = np.asarray(rotation, float)
-        if not (np.all(np.isfinite(position)) and np.all(np.isfinite(rotation))):
+        if not (np.isfinite(position).all() and np.isfinite(rotation).all()):
             return False
         if self.open_loop:
             return False

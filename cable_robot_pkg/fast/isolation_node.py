@@ -82,6 +82,7 @@ class IsolationNode(ParamotionNode):
         self.pub = self.create_publisher(JointState, TOPICS['legs_command'], STATE_QOS)
         self.diag_pub = self.create_publisher(DiagnosticArray, TOPICS['diagnostics'], STATE_QOS)
         self.next_update = 0.0
+        self.cmd_msg = JointState()      # the leg command, refilled (publishing copies it)
 
     def check_params(self, values):
         reason = check_config_param(values['config'])
@@ -102,7 +103,7 @@ class IsolationNode(ParamotionNode):
 
     def _on_target(self, msg):
         p, R = pose_from_msg(msg)
-        if np.all(np.isfinite(p)) and np.all(np.isfinite(R)):
+        if np.isfinite(p).all() and np.isfinite(R).all():
             self.ctl.set_target(stamp_seconds(msg.header.stamp), p, R)
 
     def _on_upper(self, msg):
@@ -110,7 +111,7 @@ class IsolationNode(ParamotionNode):
 
     def _on_trolley(self, msg):
         p, R = pose_from_msg(msg)
-        if np.all(np.isfinite(p)) and np.all(np.isfinite(R)):
+        if np.isfinite(p).all() and np.isfinite(R).all():
             self.ctl.add_trolley(self._now(), stamp_seconds(msg.header.stamp), p, R)
 
     def _on_feed(self, msg):
@@ -161,7 +162,8 @@ class IsolationNode(ParamotionNode):
             self._diagnose(DiagnosticStatus.OK, 'tracker measurements back: isolation resumed')
         if self.ctl.last_base_arrival is None and not self.ctl.open_loop:
             return   # nothing measured yet: the simulator keeps the legs at nominal length
-        self.pub.publish(joint_state_msg(stamp, LEG_NAMES, cmd.lengths, cmd.rates))
+        self.pub.publish(joint_state_msg(stamp, LEG_NAMES, cmd.lengths, cmd.rates,
+                                         msg=self.cmd_msg))
         self.update_times.append(time.perf_counter() - start)
 
 

@@ -70,6 +70,7 @@ class OpticalTrackerNode(ParamotionNode):
             self.create_subscription(PoseStamped, TOPICS[truth_key],
                                      lambda m, b=body: self._on_truth(b, m), STATE_QOS)
             self.pubs[body] = self.create_publisher(PoseStamped, TOPICS[out_key], SENSOR_QOS)
+        self.out = {body: PoseStamped() for body, _, _ in BODIES}   # refilled (publish copies)
         self.next_capture = 0.0
 
     def check_params(self, values):
@@ -99,16 +100,21 @@ class OpticalTrackerNode(ParamotionNode):
     def _tick(self, now):
         p = self.params
         sig_r = math.radians(p.noise_orientation_deg)
+        # The generator's stream and arithmetic of ``normal(0, sigma, 3)`` twice and
+        # ``random()`` twice per body (``loc + scale * standard normal``), in two calls.
+        sig_p = p.noise_position
+        scale = np.array([sig_p, sig_p, sig_p, sig_r, sig_r, sig_r])
         for body, _, _ in BODIES:
             msg = self.truth.get(body)
             if msg is None:
                 continue
             t_cap = stamp_seconds(msg.header.stamp)
             # Draw every random number every time: the noise does not depend on the faults.
-            dn = self.rng.normal(0.0, p.noise_position, 3)
-            dr = self.rng.normal(0.0, sig_r, 3)
-            drop = self.rng.random() < p.dropout_probability
-            nan = self.rng.random() < p.nan_probability
+            d = 0.0 + scale * self.rng.standard_normal(6)
+            dn, dr = d[:3], d[3:]
+            u = self.rng.random(2)
+            drop = u[0] < p.dropout_probability
+            nan = u[1] < p.nan_probability
             if self.last_capture.get(body) == t_cap:
                 continue   # this truth sample was already captured
             self.last_capture[body] = t_cap
@@ -128,8 +134,8 @@ class OpticalTrackerNode(ParamotionNode):
     def _release(self, now):
         while self.queue and self.queue[0][0] <= now + 1e-9:
             _, body, stamp, position, rotation = self.queue.popleft()
-            if np.all(np.isfinite(rotation)):
-                out = pose_msg(stamp, 'map', position, rotation)
+            if np.isfinite(rotation).all():
+                out = pose_msg(stamp, 'map', position, rotation, msg=self.out[body])
             else:
                 out = PoseStamped()
                 out.header.stamp = stamp

@@ -351,30 +351,34 @@ class FeedSupportPlant:
         self.t += dt
 
     # ------------------------------------------------------------------ state
+    # The state reads below run once per publish period each: PyBullet's functions with the
+    # client id, not through ``BulletClient`` (which builds a partial at every attribute read).
     def trolley_pose(self) -> tuple[np.ndarray, np.ndarray]:
-        pos, q = self.b.getBasePositionAndOrientation(self.body)
+        pos, q = pybullet.getBasePositionAndOrientation(self.body, physicsClientId=self._cid)
         return np.array(pos), _matrix(q)
 
     def trolley_velocity(self) -> tuple[np.ndarray, np.ndarray]:
-        lin, ang = self.b.getBaseVelocity(self.body)
+        lin, ang = pybullet.getBaseVelocity(self.body, physicsClientId=self._cid)
         return np.array(lin), np.array(ang)
 
     def upper_pose(self) -> tuple[np.ndarray, np.ndarray]:
         """Upper platform centre and orientation (world)."""
-        st = self.b.getLinkState(self.body, self.UPPER, computeForwardKinematics=True)
+        st = pybullet.getLinkState(self.body, self.UPPER, computeForwardKinematics=True,
+                                   physicsClientId=self._cid)
         R = _matrix(st[5])
         return np.array(st[4]) - self.chain.upper_offset * R[:, 2], R
 
     def feed_pose(self) -> tuple[np.ndarray, np.ndarray]:
-        pos, q = self.b.getBasePositionAndOrientation(self.feed)
+        pos, q = pybullet.getBasePositionAndOrientation(self.feed, physicsClientId=self._cid)
         return np.array(pos), _matrix(q)
 
     def hinge_angles(self) -> np.ndarray:
-        return np.array([self.b.getJointState(self.body, j)[0] for j in (self.RING, self.UPPER)])
+        return np.array([s[0] for s in pybullet.getJointStates(
+            self.body, [self.RING, self.UPPER], physicsClientId=self._cid)])
 
     def leg_lengths(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Leg lengths from the prismatic joints (the actuators' encoders), rates and forces."""
-        states = self.b.getJointStates(self.body, self.ROD)
+        states = pybullet.getJointStates(self.body, self.ROD, physicsClientId=self._cid)
         q = np.array([s[0] for s in states]) + self.nominal_lengths
         v = np.array([s[1] for s in states])
         f = self.leg_force.copy() if self.force_drive else np.array([s[3] for s in states])

@@ -4,7 +4,9 @@ Topic names live here too, so the nodes, the scenario and the tests agree on the
 """
 from __future__ import annotations
 
+import array
 import copy
+import math
 import os
 from collections.abc import Sequence
 
@@ -73,43 +75,57 @@ def stamp_seconds(stamp: Time) -> float:
     return stamp.sec + stamp.nanosec * 1e-9
 
 
-def pose_msg(stamp: Time, frame_id: str, position: ArrayLike,
-             rotation: ArrayLike) -> PoseStamped:
-    """PoseStamped from a position (3,) and rotation matrix (3, 3)."""
-    msg = PoseStamped()
+def pose_msg(stamp: Time, frame_id: str, position: ArrayLike, rotation: ArrayLike,
+             msg: PoseStamped | None = None) -> PoseStamped:
+    """PoseStamped from a position (3,) and rotation matrix (3, 3).
+
+    ``msg``: a message to refill instead of a new one (a publisher keeps one per topic; the
+    middleware and the in-process delivery copy a message when it is published)."""
+    if msg is None:
+        msg = PoseStamped()
     msg.header.stamp = stamp
     msg.header.frame_id = frame_id
-    p = msg.pose.position
-    p.x, p.y, p.z = (float(v) for v in position)
-    q = quat_from_matrix(rotation)   # x, y, z, w
-    o = msg.pose.orientation
-    o.x, o.y, o.z, o.w = (float(v) for v in q)
+    pose = msg.pose
+    p = pose.position
+    p.x, p.y, p.z = float(position[0]), float(position[1]), float(position[2])
+    o = pose.orientation
+    o.x, o.y, o.z, o.w = quat_from_matrix(rotation)   # x, y, z, w (floats)
     return msg
 
 
 def pose_from_msg(msg: PoseStamped) -> tuple[np.ndarray, np.ndarray]:
     """(position (3,), rotation (3, 3)) of a PoseStamped; NaN-safe (returns NaN arrays)."""
-    p = msg.pose.position
-    o = msg.pose.orientation
+    pose = msg.pose
+    p = pose.position
+    o = pose.orientation
     position = np.array([p.x, p.y, p.z], float)
-    q = np.array([o.x, o.y, o.z, o.w], float)
-    if not np.all(np.isfinite(q)) or np.linalg.norm(q) < 1e-9:
+    x, y, z, w = o.x, o.y, o.z, o.w
+    isfinite = math.isfinite
+    if not (isfinite(x) and isfinite(y) and isfinite(z) and isfinite(w)) \
+            or math.sqrt(x * x + y * y + z * z + w * w) < 1e-9:
         return position, np.full((3, 3), np.nan)
-    return position, matrix_from_quat(q)
+    return position, matrix_from_quat((x, y, z, w))
+
+
+def _doubles(values: ArrayLike) -> array.array:
+    """A ``float64[]`` message field (``array('d')``, what the setter stores) of ``values``."""
+    return array.array('d', np.asarray(values, float).tobytes())
 
 
 def joint_state_msg(stamp: Time, names: Sequence[str], position: ArrayLike,
                     velocity: ArrayLike | None = None,
-                    effort: ArrayLike | None = None) -> JointState:
-    """sensor_msgs/JointState with float lists."""
-    msg = JointState()
+                    effort: ArrayLike | None = None,
+                    msg: JointState | None = None) -> JointState:
+    """sensor_msgs/JointState (``msg``: a message to refill instead of a new one)."""
+    if msg is None:
+        msg = JointState()
     msg.header.stamp = stamp
     msg.name = list(names)
-    msg.position = [float(v) for v in position]
+    msg.position = _doubles(position)
     if velocity is not None:
-        msg.velocity = [float(v) for v in velocity]
+        msg.velocity = _doubles(velocity)
     if effort is not None:
-        msg.effort = [float(v) for v in effort]
+        msg.effort = _doubles(effort)
     return msg
 
 
@@ -119,6 +135,8 @@ def joint_vector(msg: JointState, names: Sequence[str],
     values = getattr(msg, field)
     if len(values) != len(msg.name):
         return None
+    if list(msg.name) == list(names):      # the usual case: the publisher's order
+        return np.array(values, float)
     index = {n: i for i, n in enumerate(msg.name)}
     if any(n not in index for n in names):
         return None

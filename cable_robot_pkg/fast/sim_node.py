@@ -80,6 +80,9 @@ class FastSimNode(SimulationNode):
             ('winches_state', JointState), ('legs_state', JointState),
             ('orienting_state', JointState), ('wind', WrenchStamped),
             ('diagnostics', DiagnosticArray))}
+        self.msgs = {k: PoseStamped() for k in ('truth_trolley', 'truth_upper', 'truth_feed')}
+        self.msgs.update((k, JointState()) for k in ('cables_state', 'winches_state',
+                                                     'legs_state', 'orienting_state'))
 
     def check_params(self, values):
         reason = super().check_params(values)
@@ -125,23 +128,31 @@ class FastSimNode(SimulationNode):
 
     def publish_state(self):
         pl = self.plant
+        pubs, msgs = self.pubs, self.msgs
         stamp = self.stamp()
         trolley = pl.trolley_pose()
-        self.pubs['truth_trolley'].publish(pose_msg(stamp, 'map', *trolley))
-        self.pubs['truth_upper'].publish(pose_msg(stamp, 'map', *pl.upper_pose()))
-        self.pubs['truth_feed'].publish(pose_msg(stamp, 'map', *pl.feed_pose()))
+        # One message per topic, refilled (publishing copies it).
+        pubs['truth_trolley'].publish(pose_msg(stamp, 'map', *trolley,
+                                               msg=msgs['truth_trolley']))
+        pubs['truth_upper'].publish(pose_msg(stamp, 'map', *pl.upper_pose(),
+                                             msg=msgs['truth_upper']))
+        pubs['truth_feed'].publish(pose_msg(stamp, 'map', *pl.feed_pose(),
+                                            msg=msgs['truth_feed']))
         dL = self.cfg.cables.length_rates(*trolley, *pl.trolley_velocity())
-        self.pubs['cables_state'].publish(joint_state_msg(
-            stamp, self.cable_names, pl.last_lengths, dL, pl.last_tensions))
-        if self.pubs['winches_state'].get_subscription_count():   # no reader, no message
-            self.pubs['winches_state'].publish(joint_state_msg(
-                stamp, self.cable_names, pl.unstretched, pl.winch_rates))
+        pubs['cables_state'].publish(joint_state_msg(
+            stamp, self.cable_names, pl.last_lengths, dL, pl.last_tensions,
+            msg=msgs['cables_state']))
+        if pubs['winches_state'].get_subscription_count():   # no reader, no message
+            pubs['winches_state'].publish(joint_state_msg(
+                stamp, self.cable_names, pl.unstretched, pl.winch_rates,
+                msg=msgs['winches_state']))
         q, v, f = pl.leg_lengths()
-        self.pubs['legs_state'].publish(joint_state_msg(stamp, LEG_NAMES, q, v, f))
+        pubs['legs_state'].publish(joint_state_msg(stamp, LEG_NAMES, q, v, f,
+                                                   msg=msgs['legs_state']))
         at_end = (q <= pl.geom.leg_min + 1e-3) | (q >= pl.geom.leg_max - 1e-3)
         self.stroke_steps += at_end
-        self.pubs['orienting_state'].publish(joint_state_msg(stamp, HINGE_NAMES,
-                                                             pl.hinge_angles()))
+        pubs['orienting_state'].publish(joint_state_msg(stamp, HINGE_NAMES, pl.hinge_angles(),
+                                                        msg=msgs['orienting_state']))
         if self.pubs['wind'].get_subscription_count():
             w = WrenchStamped()
             w.header.stamp = stamp
