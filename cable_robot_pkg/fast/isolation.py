@@ -205,6 +205,7 @@ class ConstantAccelerationKF:
         self.x = np.zeros((3, m))
         self.P = np.diag([1.0, 1.0, 1.0])
         self.t = None
+        self._models = {}         # (dt, q) -> (F, Q), see _model
 
     def reset(self, t: float, z: ArrayLike) -> None:
         """Start at measurement ``z`` (m,) at time ``t`` with unknown rates."""
@@ -217,15 +218,26 @@ class ConstantAccelerationKF:
         """Predict to ``t`` and fuse measurement ``z`` (m,)."""
         dt = t - self.t
         if dt > 0:
-            F = _transition(dt)
+            F, Q = self._model(dt)
             self.x = F @ self.x
-            self.P = F @ self.P @ F.T + _process_noise(self.q, dt)
+            self.P = F @ self.P @ F.T + Q
             self.t = t
         S = self.P[0, 0] + self.r
         K = self.P[:, 0] / S
         Kc = K[:, None]          # np.outer(K, v) is K[:, None] * v[None, :]
         self.x = self.x + Kc * (np.asarray(z) - self.x[0])[None, :]
         self.P = self.P - Kc * self.P[0][None, :]
+
+    def _model(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """Transition and process noise for a step of ``dt``, kept per (dt, q): measurements
+        come on the tracker's frame grid, whose stamp differences take a few dozen values."""
+        key = (dt, self.q)
+        model = self._models.get(key)
+        if model is None:
+            if len(self._models) >= 256:
+                self._models.clear()
+            model = self._models[key] = (_transition(dt), _process_noise(self.q, dt))
+        return model
 
     def predict(self, t: float, order: int = 2) -> np.ndarray:
         """State [p, v, a] (3, m) extrapolated to time ``t`` (no update); ``order`` 1

@@ -327,7 +327,9 @@ class FeedSupportPlant:
         dt = self.dt
         # Winches: unstretched length follows the command at most at the speed limit.
         goal = self.winch_cmd + self.winch_rate_cmd * (self.t - self.winch_cmd_time)
-        step = np.clip(goal - self.unstretched, -self.winch_speed * dt, self.winch_speed * dt)
+        # np.clip's result, without its call overhead (1000 calls per sim s).
+        step = np.minimum(np.maximum(goal - self.unstretched, -self.winch_speed * dt),
+                          self.winch_speed * dt)
         self.unstretched = self.unstretched + step
         rates = step / dt
         pos, q = pybullet.getBasePositionAndOrientation(self.body, physicsClientId=cid)
