@@ -87,6 +87,8 @@ class PaperConfig:
     stuck_time: float = 6.0         # s commanded but not moving -> the target is given up
     max_stuck: int = 6              # stuck events in a row before the run stops
     detector: str = 'extended'      # the paper planner is for the extended-range detector
+    handover: bool = False          # Fig. 13's order: a cusp met while tracing hands over
+    #                                 to the vast node beyond it at once (selectable)
 
     def detector_range(self) -> float:
         """Range of the detector used for coverage: delta."""

@@ -43,7 +43,13 @@ def parse_config(items: list[str]) -> dict[str, object]:
         if not sep or not hasattr(base, name):
             raise SystemExit(f'--set "{item}" must be NAME=VALUE with a PaperConfig field NAME')
         kind = type(getattr(base, name))
-        out[name] = tuple(v for v in value.split(',') if v) if kind is tuple else kind(value)
+        if kind is bool:
+            if value.lower() not in ('1', 'true', 'yes', '0', 'false', 'no'):
+                raise SystemExit(f'--set "{item}": {name} takes true or false')
+            out[name] = value.lower() in ('1', 'true', 'yes')
+        else:
+            out[name] = tuple(v for v in value.split(',') if v) if kind is tuple else \
+                kind(value)
     return out
 
 

@@ -177,3 +177,41 @@ def test_obstacles_a_lap_runs_into_are_followed_and_their_slices_resumed_beyond(
         ev = r['planner'].events[circ['opened_by']]
         assert ev[1] == 'critical' and 'split' in ev[4]
         assert min(math.dist(ev[2:4], (cx, cy)) for cx in (5, 10) for cy in (5, 10)) < 1.0
+
+
+def test_a_lap_ending_at_the_circuited_wall_is_no_obstacle_inside_the_cell():
+    """A 7 x 5.25 m room with a door (gen_rooms_202's right room): the boundary circuit has
+    followed the outer wall, so the lap that ends at it meets no obstacle inside the cell (no
+    'split' critical point, no second circuit). The circuit records every echo within delta
+    of it as the followed boundary; with the closest echo alone, the cones' spacing left that
+    stretch of wall unrecorded and the outer wall was circuited a second time."""
+    room = {'name': 'room_door', 'start': [11.696, 2.463],
+            'boundary': [[7.647, 0.0], [14.71, 0.0], [14.71, 5.251], [7.647, 5.251],
+                         [7.647, 3.522], [5.6, 3.522], [5.6, 2.146], [7.647, 2.146]]}
+    r = run_kinematic(world_from_dict(room), PaperConfig(), max_time=25)
+    p = r['planner']
+    lap_ends = [(x, lo) for c in p.nodes[0].cells for x, lo, _ in c.laps]
+    assert lap_ends                                  # a lap was driven to the bottom wall
+    wall = p.nodes[0].circuits[0]['wall']
+    assert any(math.dist(q, (x, 0.0)) < 0.6 for q in wall for x, _ in lap_ends)
+    assert not [e for e in p.events if e[1] == 'critical' and 'inside the cell' in e[4]]
+    assert len(p.nodes[0].circuits) == 1
+
+
+@pytest.mark.parametrize('before, cusps', [('boundary', 1), ('gvd', 0), ('lap', 0)])
+def test_fig10_compares_the_closest_obstacle_between_sweeps_of_one_boundary_following(before,
+                                                                                      cusps):
+    """Fig. 10: following the boundary at D = delta, the closest obstacle jumps to another
+    one: a cusp point. The jump is taken between two sweeps that both follow the boundary; the
+    sweep before it driven by another primitive (a GVD edge, whose closest obstacle alternates
+    between the two equidistant ones; a lap) gives no cusp when the boundary following begins."""
+    p = _planner()
+    p.on_odometry(0.0, 5.0, 5.0, 0.0)
+    p.nodes.append(Node(0, 'vast', (5.0, 5.0)))
+    p.current, p.t_first_sweep = 0, -5.0
+    for k, (mode, near) in enumerate(((before, (0, 5)), ('boundary', (5, 0)))):
+        ranges = np.full(16, 4.5)
+        ranges[near[0]], ranges[near[1]] = 1.98, 2.03     # the closest echo jumps 112 deg
+        p.mode = mode
+        p.on_sweep(1.0 + 0.1 * k, ranges)
+    assert sum(e[1] == 'cusp' for e in p.events) == cusps

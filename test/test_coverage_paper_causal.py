@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from coverage_pkg.algorithm1 import PaperConfig
+from coverage_pkg.algorithm1 import Branch, PaperConfig
 from coverage_pkg.kinematic import run_kinematic
 from coverage_pkg.world import load_world, world_from_dict
 
@@ -257,3 +257,24 @@ def test_a_start_beside_a_single_wall_moves_off_it_before_createnode():
     assert p.nodes and p.nodes[0].kind == 'vast'
     assert 8.0 - p.nodes[0].anchor[1] >= 2.0
     assert p.nodes[0].anchor[1] < 7.3 - 0.5
+
+
+@pytest.mark.parametrize('handover', [False, True])
+def test_a_cusp_met_while_tracing_hands_over_to_the_vast_node_in_fig13_order(handover):
+    """A cusp sensed while tracing a narrow node's GVD edge creates the vast node beyond it
+    (Algorithm 1's L, F). In Algorithm 1's order the robot goes on tracing the narrow node
+    and reaches the vast node through FindUncoveredNode; with ``handover`` (Fig. 13's
+    narration: at Cs2 the robot covers the right room, then returns along the corridor) the
+    vast node becomes the current node at once and the narrow node keeps its open branch."""
+    p = _sensing(CORRIDOR, (6.0, 0.7), handover=handover)
+    narrow = p.nodes[p.current]
+    narrow.branches += [Branch((6.0, 0.7), (1.0, 0.0), None), Branch((6.0, 0.7), (-1.0, 0.0),
+                                                                     None)]
+    p.mode, p.task = 'gvd', {'branch': narrow.branches[0], 'heading': (1.0, 0.0)}
+    p._cusp_dir = math.pi                       # back along the trace: into the narrow cell
+    p._on_event(1.0, 'cusp', (6.0, 0.7), 'injected')
+    vast = [n for n in p.nodes if n.kind == 'vast']
+    assert len(vast) == 1 and narrow.branches[0].end == 'cusp'
+    assert p.current == (vast[0].id if handover else narrow.id)
+    assert not narrow.covered and narrow.branches[1].end is None   # resumed later
+    assert [d[1] for d in p.decisions] == ([vast[0].id] if handover else [])

@@ -46,6 +46,17 @@ class CreateNode:
             new.branches.append(Branch(xy, into, idx))   # leaves along the cusp's GVD edge
         if n.kind == 'narrow' and self.mode == 'gvd':
             self._end_branch('cusp')
+            if self.cfg.handover:
+                self._hand_over(new)
+
+    def _hand_over(self, new):
+        """Fig. 13's order (switch ``handover``): the vast node beyond a cusp sensed while
+        tracing is covered at once, from where the robot stands; the narrow node keeps its
+        open branches and is resumed when FindUncoveredNode returns to it."""
+        self.decisions.append((round(float(self.t_sweep or 0.0), 3), new.id, new.kind,
+                               new.anchor[0], new.anchor[1]))
+        self.current = new.id
+        self._begin_node(new)
 
     def _traced_narrow(self, xy):
         """The narrow node whose traced GVD branch ended at this cusp (the cusp event that

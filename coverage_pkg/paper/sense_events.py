@@ -28,7 +28,8 @@ class EventSensing:
         level = self.det + (0.015 if self.mode == 'gvd' else 0.0)
         if math.isfinite(prev) and (prev <= level) != (self.D <= level):
             xy = gvdmod.cusp_from_ring(self.pose[:2], self.ranges, self.angles, self.det)
-        bearing = self.mins[0][1] if self.mins else None
+        # the closest obstacle's bearing, compared between sweeps of one boundary following
+        bearing = self.mins[0][1] if self.mins and self.mode == 'boundary' else None
         last, self._near_bearing = self._near_bearing, bearing
         if xy is None and self.mode == 'boundary' and last is not None and \
                 bearing is not None and abs(self.D - self.det) < 0.3 and \
