@@ -514,6 +514,7 @@ class TargetHistory:
         self.times = deque()      # the items' times, for bisection while they increase
         self.ordered = True       # every time at or after the one before
         self.horizon = horizon
+        self._velocity = (None, None, None)   # (newest item, velocity, angular velocity)
 
     def add(self, t: float, position: ArrayLike, rotation: ArrayLike) -> None:
         if self.items and t < self.items[-1][0]:
@@ -553,13 +554,17 @@ class TargetHistory:
         return last[1], last[2]
 
     def velocity(self) -> tuple[np.ndarray, np.ndarray]:
-        """Finite-difference target velocity (3,) and angular velocity (3,), map frame."""
+        """Finite-difference target velocity (3,) and angular velocity (3,), map frame (kept
+        until the next target: the controller asks at twice the target rate)."""
         if len(self.items) < 2:
             return np.zeros(3), np.zeros(3)
-        (t0, p0, R0), (t1, p1, R1) = self.items[-2], self.items[-1]
-        dt = max(t1 - t0, 1e-9)
-        w = rotvec_from_matrix(R1 @ R0.T) / dt
-        return (p1 - p0) / dt, w
+        newest = self.items[-1]
+        if self._velocity[0] is not newest:
+            (t0, p0, R0), (t1, p1, R1) = self.items[-2], newest
+            dt = max(t1 - t0, 1e-9)
+            w = rotvec_from_matrix(R1 @ R0.T) / dt
+            self._velocity = (newest, (p1 - p0) / dt, w)
+        return self._velocity[1].copy(), self._velocity[2].copy()
 
 
 def _skew(v):
@@ -710,6 +715,7 @@ class IsolationController:
             K, J = (np.asarray(a, float) for a in reaction)
             self.reaction = (K, np.linalg.inv(np.eye(6) - J @ K))
         self._fk_cache = (None, None)
+        self._reaction_cache = (None, None, None)   # (FK solution, its K e: shift, rotation)
         if self.open_loop and chain is None:
             raise ValueError('without tracker_feedback needs the chain (trajectory -> base)')
         fuse = fuse and mode == 'predictive'
@@ -904,10 +910,13 @@ class IsolationController:
         fk = self._legs_pose(stamp)
         if fk is None:
             return position, rotation
-        e = np.concatenate([fk.position - self.nominal_p,
-                            rotvec_from_matrix(fk.rotation @ self.nominal_R.T)])
-        k = self.reaction[0] @ e                      # base frame
-        return position + rotation @ k[:3], rotation @ matrix_from_rotvec(k[3:])
+        if self._reaction_cache[0] is not fk:    # the views of one frame share its stamp
+            e = np.concatenate([fk.position - self.nominal_p,
+                                rotvec_from_matrix(fk.rotation @ self.nominal_R.T)])
+            k = self.reaction[0] @ e                  # base frame
+            self._reaction_cache = (fk, k[:3], matrix_from_rotvec(k[3:]))
+        _, k_p, k_R = self._reaction_cache
+        return position + rotation @ k_p, rotation @ k_R
 
     def _base_from_feed(self, stamp, position, rotation):
         """Upper platform pose from the tracked feed and the leg lengths at ``stamp``
