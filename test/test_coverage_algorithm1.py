@@ -215,3 +215,22 @@ def test_fig10_compares_the_closest_obstacle_between_sweeps_of_one_boundary_foll
         p.mode = mode
         p.on_sweep(1.0 + 0.1 * k, ranges)
     assert sum(e[1] == 'cusp' for e in p.events) == cusps
+
+
+@pytest.mark.parametrize('entry, cusps', [((5.0, 5.0), 0), ((7.0, 5.0), 1)])
+def test_d_crossing_delta_at_the_cusp_a_vast_node_was_entered_by_is_that_cusp(entry, cusps):
+    """Fig. 11 in reverse: a vast node created by the cusp where D rose above delta on a GVD
+    edge is entered there; D falling back below delta while the robot is still at that cusp
+    (turning onto the boundary) is the same cusp, not a new one. Away from it, D crossing
+    delta between two closest obstacles is a new cusp (a narrow node beyond it)."""
+    p = _planner()
+    p.on_odometry(0.0, 5.0, 5.0, 0.0)
+    p.t_first_sweep = -5.0
+    ev = p._record(0.5, 'cusp', entry, 'the cusp the vast node was entered by')
+    p.nodes.append(Node(0, 'vast', entry, created_by=ev))
+    p.current, p.mode = 0, 'boundary'
+    for k, near in enumerate((2.2, 1.98)):                # D falls through delta
+        ranges = np.full(16, 4.5)
+        ranges[0], ranges[5] = near, near + 0.05
+        p.on_sweep(1.0 + 0.1 * k, ranges)
+    assert sum(e[1] == 'cusp' for e in p.events) - 1 == cusps
