@@ -179,16 +179,19 @@ def test_obstacles_a_lap_runs_into_are_followed_and_their_slices_resumed_beyond(
         assert min(math.dist(ev[2:4], (cx, cy)) for cx in (5, 10) for cy in (5, 10)) < 1.0
 
 
+# gen_rooms_202's right room and its door, opening onto a 2 m stub
+ROOM_DOOR = {'name': 'room_door', 'start': [11.696, 2.463],
+             'boundary': [[7.647, 0.0], [14.71, 0.0], [14.71, 5.251], [7.647, 5.251],
+                          [7.647, 3.522], [5.6, 3.522], [5.6, 2.146], [7.647, 2.146]]}
+
+
 def test_a_lap_ending_at_the_circuited_wall_is_no_obstacle_inside_the_cell():
     """A 7 x 5.25 m room with a door (gen_rooms_202's right room): the boundary circuit has
     followed the outer wall, so the lap that ends at it meets no obstacle inside the cell (no
     'split' critical point, no second circuit). The circuit records every echo within delta
     of it as the followed boundary; with the closest echo alone, the cones' spacing left that
     stretch of wall unrecorded and the outer wall was circuited a second time."""
-    room = {'name': 'room_door', 'start': [11.696, 2.463],
-            'boundary': [[7.647, 0.0], [14.71, 0.0], [14.71, 5.251], [7.647, 5.251],
-                         [7.647, 3.522], [5.6, 3.522], [5.6, 2.146], [7.647, 2.146]]}
-    r = run_kinematic(world_from_dict(room), PaperConfig(), max_time=25)
+    r = run_kinematic(world_from_dict(ROOM_DOOR), PaperConfig(), max_time=25)
     p = r['planner']
     lap_ends = [(x, lo) for c in p.nodes[0].cells for x, lo, _ in c.laps]
     assert lap_ends                                  # a lap was driven to the bottom wall
@@ -234,3 +237,35 @@ def test_d_crossing_delta_at_the_cusp_a_vast_node_was_entered_by_is_that_cusp(en
         ranges[0], ranges[5] = near, near + 0.05
         p.on_sweep(1.0 + 0.1 * k, ranges)
     assert sum(e[1] == 'cusp' for e in p.events) - 1 == cusps
+
+
+def test_thin_is_a_circuit_that_turned_around_a_cell_within_delta_of_it():
+    """``_thin`` (switch circuit_sweeps): every point a closed circuit encloses lies within
+    delta - overlap of it. A 3 x 1.2 m loop is; a 6 x 6 m loop is not (its middle is 3 m
+    from it); an open U (the circuit ended at its closest pass by the start) is not."""
+    p = _planner()
+
+    def loop(w, h):
+        return [(x, 0.0) for x in np.arange(0.0, w, 0.3)] + \
+            [(w, y) for y in np.arange(0.0, h, 0.3)] + \
+            [(x, h) for x in np.arange(w, 0.0, -0.3)] + \
+            [(0.0, y) for y in np.arange(h, 0.0, -0.3)]
+    assert p._thin(loop(3.0, 1.2))
+    assert not p._thin(loop(6.0, 6.0))
+    u = [(7.48, 2.89), (7.45, 2.49), (7.43, 2.1), (7.72, 1.99), (8.12, 1.99), (8.06, 2.38),
+         (8.03, 2.78), (8.05, 3.17)]                   # gen_mixed_100's first circuit
+    assert not p._thin(u)
+
+
+@pytest.mark.parametrize('circuit_sweeps', [False, True])
+def test_a_cell_its_circuit_has_swept_gets_no_laps_with_circuit_sweeps(circuit_sweeps):
+    """A 7 x 5.25 m room: its vast cell lies within 1 m of the boundary circuit, so the
+    circuit has swept it. With circuit_sweeps (ours) the Morse cell closes when the circuit
+    ends, without laps; in the paper's mode its laps are driven. Both cover the room."""
+    r = run_kinematic(world_from_dict(ROOM_DOOR), PaperConfig(circuit_sweeps=circuit_sweeps),
+                      max_time=300)
+    cell = r['planner'].nodes[0].cells[0]
+    assert r['state'] == 'done' and r['covered_fraction'] >= 0.99
+    assert (not cell.laps) == circuit_sweeps
+    closed = [e[4] for e in r['planner'].events if e[1] == 'cell_closed']
+    assert any('swept by the circuit' in c for c in closed) == circuit_sweeps

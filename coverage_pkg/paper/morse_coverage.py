@@ -348,9 +348,49 @@ class MorseDecompCoverage:
                 if sliver:        # narrower than a lap: the circuit has swept it (one lap)
                     self._close_cell(n, n.cells[0], None, 'the circuit encloses no area: '
                                      'the cell is narrower than one lap and swept by it')
+                elif self.cfg.circuit_sweeps and self._thin(circ['trace']):
+                    self._close_cell(n, n.cells[0], None, 'every point the circuit encloses '
+                                     'lies within delta of it: swept by the circuit')
             self.task, self.mode = {}, None
             return None
         return self._follow_velocity()
+
+    def _thin(self, trace, step=0.25, most=4000):
+        """Every point the circuit encloses lies within ``delta - overlap`` of the circuit
+        (switch ``circuit_sweeps``, ours): the detector has swept the cell from its boundary
+        and no lap is needed. No obstacle can lie inside such a circuit, since the circuit
+        keeps D = delta from every obstacle. Only a circuit that turned around the cell (its
+        heading turned by more than 1.4 pi: a loop closing at a corner turns 1.5 pi before
+        it) counts; checked on a ``step`` grid of the enclosed points (a cell of more than
+        ``most`` of them is taken as not thin)."""
+        q = np.asarray(trace, dtype=float)
+        if len(q) < 4:
+            return False
+        seg = np.diff(q, axis=0)
+        head = np.arctan2(seg[:, 1], seg[:, 0])
+        turn = float((np.remainder(np.diff(head) + np.pi, 2 * np.pi) - np.pi).sum())
+        if abs(turn) < 1.4 * np.pi:
+            return False                          # the circuit did not turn around the cell
+        lo, hi = q.min(axis=0), q.max(axis=0)
+        xs, ys = np.arange(lo[0], hi[0], step), np.arange(lo[1], hi[1], step)
+        if len(xs) * len(ys) > most:
+            return False
+        px, py = (g.ravel() for g in np.meshgrid(xs, ys))
+        a, b = q, np.roll(q, -1, axis=0)
+        inside = np.zeros(px.shape, dtype=bool)
+        for (x1, y1), (x2, y2) in zip(a, b):          # even-odd rule
+            if y1 != y2:
+                cross = ((y1 > py) != (y2 > py)) & \
+                    (px < x1 + (py - y1) * (x2 - x1) / (y2 - y1))
+                inside ^= cross
+        p = np.column_stack([px[inside], py[inside]])
+        if not len(p):
+            return True
+        d = b - a
+        t = np.clip(((p[:, None, :] - a[None]) * d[None]).sum(-1) /
+                    np.maximum((d * d).sum(-1), 1e-12)[None], 0.0, 1.0)
+        dist = np.hypot(*(p[:, None, :] - (a[None] + t[..., None] * d[None])).transpose(2, 0, 1))
+        return float(dist.min(axis=1).max()) < self.det - self.cfg.overlap
 
     def _sliver_tips(self, trace):
         """A circuit that encloses no area (mean width 2 A / length < 0.3 m) has followed the
