@@ -90,7 +90,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument('--png', default=None, help='directory for one picture per world')
     ap.add_argument('--max-sim-time', type=float, default=3000.0)
     ap.add_argument('--set', action='append', default=[], metavar='NAME=VALUE',
-                    help="a PaperConfig field, e.g. 'transit_joins=union' (repeatable)")
+                    help="a PaperConfig field, e.g. 'circuit_sweeps=true' (repeatable)")
     args = ap.parse_args(argv)
     seeds = parse_seeds(args.seeds)
     config = parse_config(args.set)

@@ -269,3 +269,16 @@ def test_a_cell_its_circuit_has_swept_gets_no_laps_with_circuit_sweeps(circuit_s
     assert (not cell.laps) == circuit_sweeps
     closed = [e[4] for e in r['planner'].events if e[1] == 'cell_closed']
     assert any('swept by the circuit' in c for c in closed) == circuit_sweeps
+
+
+@pytest.mark.parametrize('handover', [False, True])
+def test_a_circuit_runs_on_past_its_start_in_the_handover_mode(handover):
+    """Handed over at a cusp (Fig. 13's order), the vast node's circuit starts among the
+    cell's cusps, so in that mode it runs on past its start by ``same_event`` (0.5 m) before
+    it ends, for the Fig. 10 test to sense the cusps there; in Algorithm 1's mode it ends
+    where it is back at its start."""
+    r = run_kinematic(world_from_dict(ROOM_DOOR), PaperConfig(handover=handover), max_time=20)
+    circ = r['planner'].nodes[0].circuits[0]
+    assert circ['done'] and circ['back_at'] is not None
+    run_on = circ['length'] - circ['back_at']
+    assert (run_on >= 0.5) if handover else (run_on < 0.1)

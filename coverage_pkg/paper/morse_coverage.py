@@ -338,8 +338,13 @@ class MorseDecompCoverage:
         back = math.dist(tk['origin'], self.pose[:2])
         passed = tk['length'] > 3.0 and tk.get('back', math.inf) < 0.8 and back > tk['back']
         tk['back'] = back                     # closest pass by the start counts as back
-        if (tk['length'] > 3.0 and back < 0.4) or passed or tk['length'] > 500.0:
-            circ['done'] = True
+        if 'closed_at' not in tk and ((tk['length'] > 3.0 and back < 0.4) or passed):
+            tk['closed_at'] = tk['length']    # back at the start
+        # handed over at a cusp, the circuit starts among the cell's cusps: on past the start
+        # by same_event, so that the Fig. 10 test senses the ones there
+        run_on = self.cfg.same_event if self.cfg.handover else 0.0
+        if tk['length'] - tk.get('closed_at', math.inf) >= run_on or tk['length'] > 500.0:
+            circ.update(done=True, length=tk['length'], back_at=tk.get('closed_at'))
             sliver = self._sliver_tips(circ['trace'])
             self._same_cell(n, circ['trace'])
             self._beyond(n, circ)
