@@ -119,6 +119,7 @@ class GaitParams:
     clamp_timeout: float = 3.0          # longest wait for a clamp confirmation, s
     clamp_state_max_age: float = 1.0    # a clamp state older than this confirms nothing, s
     move_timeout: float = 3.0           # extra time allowed beyond the planned move, s
+    stall_gap: float = 0.5              # ticks further apart than this: planner not running, s
     leg_speed: float = 0.10             # actuator speed used to time moves, m/s
 
     def __post_init__(self):
@@ -140,6 +141,7 @@ class GaitParams:
              f'(1, {gs.DEFAULT_MAX_CONDITION}]'),
             ('leg_speed', self.leg_speed > 0, '> 0'),
             ('length_tolerance', self.length_tolerance > 0, '> 0'),
+            ('stall_gap', self.stall_gap > 0, '> 0'),
         ]
         for name, ok, allowed in checks:
             if not ok:
@@ -235,6 +237,7 @@ class ClimbingGait:
         self.fixed = RING1
         self.moving = RING2
         self._deadline = math.inf
+        self._last_tick = None
         self._since = 0.0
         self._target = None
         self._planned_rel = None
@@ -404,8 +407,19 @@ class ClimbingGait:
     # ------------------------------------------------------------------ main entry
     def tick(self, t: float) -> list[Action]:
 
-        """Advance the state machine at time t (s); returns the actions to execute."""
+        """Advance the state machine at time t (s); returns the actions to execute.
+
+        Ticks further apart than ``stall_gap`` mean the planner did not run in between (a
+        process starved of CPU catching up on ``/clock``, the rest of its inputs still queued
+        behind): that gap is not counted against the deadline of what it waits for, which
+        would otherwise expire on the first tick after the gap, before the confirmation it
+        waits for is read. Ticks at the planner's rate (and every lock-step run) never shift
+        it.
+        """
         self._pending = []
+        if self._last_tick is not None and t - self._last_tick > self.p.stall_gap:
+            self._deadline += t - self._last_tick
+        self._last_tick = t
         if self.finished:
             return []
         if self.lengths is not None and not np.all(np.isfinite(self.lengths)):

@@ -213,7 +213,8 @@ class ClimberPlannerNode(LifecycleNodeMixin, ParamotionNode):
             approach=p.approach, without=parse_without(p.without, "parameter 'without'"),
             max_condition=p.max_condition, min_clearance=p.min_clearance,
             leg_speed=p.leg_speed, length_tolerance=p.length_tolerance,
-            sensor_timeout=p.sensor_timeout)
+            sensor_timeout=p.sensor_timeout,
+            stall_gap=max(0.5, 5.0 / p.rate))     # five ticks missed: the process stalled
         self.gait = ClimbingGait(rb.geometry, rb.sensor_mount_radius, rb.sensor_angles,
                                  rb.sensor_min_range, rb.sensor_max_range,
                                  rb.ring_inner_radius, params)

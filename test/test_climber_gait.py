@@ -275,3 +275,52 @@ def test_turn_around_the_trunk():
         ang = math.degrees(math.atan2(np.cross(x0, x1)[2], x0 @ x1))
         assert ang == pytest.approx(40.0, abs=0.5)
     assert model.violations == 0
+
+
+def _released_ring2(**params):
+    """A gait that has just commanded ring 2's release at t = 1.0 (ring 1 holds)."""
+    g = ROBOT.geometry
+    gait = make_gait(**params)
+    lengths = gs.inverse_kinematics(g, [0, 0, 0.45], np.eye(3))
+    released = []
+    for k in range(0, 21):
+        t = 0.05 * k
+        gait.update_clamp(t, RING1, True)
+        gait.update_clamp(t, RING2, True)
+        gait.update_encoders(t, lengths)
+        released += [t for a in gait.tick(t) if isinstance(a, ClampCommand) and not a.close]
+    assert released and gait.state is State.RELEASE
+    return gait, lengths, released[0]
+
+
+def test_a_stalled_planner_does_not_time_out_on_the_gap_it_did_not_run():
+    """The planner's process is starved for 4 s of sim time right after commanding a
+    release: its first tick after the gap must not refuse before it has read the clamp
+    states queued behind /clock; once they say released it plans. A clamp that never
+    confirms is still refused clamp_timeout after the gap, and without a gap the timeout
+    holds as before (causal: the stall handling is what keeps the planner going)."""
+    gait, lengths, _ = _released_ring2()
+    gait.tick(5.05)                               # 4 s later, nothing read in between
+    assert not gait.finished, gait.reason
+    gait, lengths, released = _released_ring2()
+    for k in range(1, 80):                        # no gap: ticks at 20 Hz, clamp still closed
+        gait.update_clamp(1.0 + 0.05 * k, RING2, True)
+        gait.tick(1.0 + 0.05 * k)
+        if gait.finished:
+            break
+    assert gait.finished and 'did not confirm release' in gait.reason
+    assert 1.0 + 0.05 * k - released == pytest.approx(3.0, abs=0.06)
+    gait, lengths, _ = _released_ring2()
+    gait.tick(5.05)
+    gait.update_clamp(5.06, RING2, False)
+    gait.update_clamp(5.06, RING1, True)
+    gait.update_encoders(5.06, lengths)
+    gait.tick(5.10)
+    assert not gait.finished and gait.state is State.PLAN
+    gait, lengths, _ = _released_ring2()
+    for k in range(1, 80):                        # after the gap, ticks again at 20 Hz
+        gait.update_clamp(5.0 + 0.05 * k, RING2, True)
+        gait.tick(5.0 + 0.05 * k)
+        if gait.finished:
+            break
+    assert gait.finished and 'did not confirm release' in gait.reason
