@@ -185,22 +185,6 @@ ROOM_DOOR = {'name': 'room_door', 'start': [11.696, 2.463],
                           [7.647, 3.522], [5.6, 3.522], [5.6, 2.146], [7.647, 2.146]]}
 
 
-def test_a_lap_ending_at_the_circuited_wall_is_no_obstacle_inside_the_cell():
-    """A 7 x 5.25 m room with a door (gen_rooms_202's right room): the boundary circuit has
-    followed the outer wall, so the lap that ends at it meets no obstacle inside the cell (no
-    'split' critical point, no second circuit). The circuit records every echo within delta
-    of it as the followed boundary; with the closest echo alone, the cones' spacing left that
-    stretch of wall unrecorded and the outer wall was circuited a second time."""
-    r = run_kinematic(world_from_dict(ROOM_DOOR), PaperConfig(), max_time=25)
-    p = r['planner']
-    lap_ends = [(x, lo) for c in p.nodes[0].cells for x, lo, _ in c.laps]
-    assert lap_ends                                  # a lap was driven to the bottom wall
-    wall = p.nodes[0].circuits[0]['wall']
-    assert any(math.dist(q, (x, 0.0)) < 0.6 for q in wall for x, _ in lap_ends)
-    assert not [e for e in p.events if e[1] == 'critical' and 'inside the cell' in e[4]]
-    assert len(p.nodes[0].circuits) == 1
-
-
 @pytest.mark.parametrize('before, cusps', [('boundary', 1), ('gvd', 0), ('lap', 0)])
 def test_fig10_compares_the_closest_obstacle_between_sweeps_of_one_boundary_following(before,
                                                                                       cusps):
@@ -218,25 +202,6 @@ def test_fig10_compares_the_closest_obstacle_between_sweeps_of_one_boundary_foll
         p.mode = mode
         p.on_sweep(1.0 + 0.1 * k, ranges)
     assert sum(e[1] == 'cusp' for e in p.events) == cusps
-
-
-@pytest.mark.parametrize('entry, cusps', [((5.0, 5.0), 0), ((7.0, 5.0), 1)])
-def test_d_crossing_delta_at_the_cusp_a_vast_node_was_entered_by_is_that_cusp(entry, cusps):
-    """Fig. 11 in reverse: a vast node created by the cusp where D rose above delta on a GVD
-    edge is entered there; D falling back below delta while the robot is still at that cusp
-    (turning onto the boundary) is the same cusp, not a new one. Away from it, D crossing
-    delta between two closest obstacles is a new cusp (a narrow node beyond it)."""
-    p = _planner()
-    p.on_odometry(0.0, 5.0, 5.0, 0.0)
-    p.t_first_sweep = -5.0
-    ev = p._record(0.5, 'cusp', entry, 'the cusp the vast node was entered by')
-    p.nodes.append(Node(0, 'vast', entry, created_by=ev))
-    p.current, p.mode = 0, 'boundary'
-    for k, near in enumerate((2.2, 1.98)):                # D falls through delta
-        ranges = np.full(16, 4.5)
-        ranges[0], ranges[5] = near, near + 0.05
-        p.on_sweep(1.0 + 0.1 * k, ranges)
-    assert sum(e[1] == 'cusp' for e in p.events) - 1 == cusps
 
 
 def test_thin_is_a_circuit_that_turned_around_a_cell_within_delta_of_it():

@@ -329,12 +329,9 @@ class MorseDecompCoverage:
         trace = circ.setdefault('trace', [])
         if not trace or math.dist(trace[-1], self.pose[:2]) > 0.3:
             trace.append(self.pose[:2])
-            # the followed boundary: the closest echo and every echo within delta + 0.1 m
-            near = np.isfinite(self.ranges) & (self.ranges < self.det + 0.1)
-            near[int(np.nanargmin(self.ranges))] = True
-            wall = circ.setdefault('wall', [])
-            for d, a in zip(self.ranges[near], self.angles[near]):
-                wall.append((self.pose[0] + d * math.cos(a), self.pose[1] + d * math.sin(a)))
+            d, a = self.mins[0]               # the followed obstacle's point
+            circ.setdefault('wall', []).append((self.pose[0] + d * math.cos(a),
+                                                self.pose[1] + d * math.sin(a)))
         back = math.dist(tk['origin'], self.pose[:2])
         passed = tk['length'] > 3.0 and tk.get('back', math.inf) < 0.8 and back > tk['back']
         tk['back'] = back                     # closest pass by the start counts as back

@@ -28,8 +28,6 @@ class EventSensing:
         level = self.det + (0.015 if self.mode == 'gvd' else 0.0)
         if math.isfinite(prev) and (prev <= level) != (self.D <= level):
             xy = gvdmod.cusp_from_ring(self.pose[:2], self.ranges, self.angles, self.det)
-            if xy is not None and self._entered_by(xy):
-                xy = None
         # the closest obstacle's bearing, compared between sweeps of one boundary following
         bearing = self.mins[0][1] if self.mins and self.mode == 'boundary' else None
         last, self._near_bearing = self._near_bearing, bearing
@@ -44,13 +42,6 @@ class EventSensing:
                 math.atan2(-head[1], -head[0])
             self._on_event(t, 'cusp', xy, 'D = delta where two closest obstacles meet')
             self._cusp_dir = None
-
-    def _entered_by(self, xy):
-        """D crosses delta at the cusp that created the vast node being covered: the robot
-        is still at the cusp it entered by (Fig. 11 in reverse), no new one."""
-        n = self.nodes[self.current] if self.current is not None else None
-        return n is not None and n.kind == 'vast' and n.created_by is not None and \
-            math.dist(self.events[n.created_by][2:4], xy) < self.cfg.same_event
 
     def _sense_meet(self, t):
         """Meet point (Section III): three closest obstacles equidistant, two sweeps agreeing."""
