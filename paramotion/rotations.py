@@ -46,9 +46,8 @@ def rotvec_from_matrix(R: ArrayLike) -> np.ndarray:
 
 def quat_from_matrix(R: ArrayLike) -> tuple[float, float, float, float]:
     """(x, y, z, w) unit quaternion of a rotation matrix (Shepperd's method)."""
-    m00, m01, m02 = float(R[0][0]), float(R[0][1]), float(R[0][2])
-    m10, m11, m12 = float(R[1][0]), float(R[1][1]), float(R[1][2])
-    m20, m21, m22 = float(R[2][0]), float(R[2][1]), float(R[2][2])
+    # One conversion to Python floats (exact) instead of nine element reads of an array.
+    (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = np.asarray(R, dtype=float).tolist()
     tr = m00 + m11 + m22
     if tr >= max(m00, m11, m22):
         t = math.sqrt(1.0 + tr) * 2.0
@@ -62,8 +61,9 @@ def quat_from_matrix(R: ArrayLike) -> tuple[float, float, float, float]:
     else:
         t = math.sqrt(1.0 + m22 - m00 - m11) * 2.0
         q = ((m02 + m20) / t, (m12 + m21) / t, 0.25 * t, (m10 - m01) / t)
-    n = math.sqrt(sum(c * c for c in q))
-    return tuple(c / n for c in q)
+    q0, q1, q2, q3 = q
+    n = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
+    return (q0 / n, q1 / n, q2 / n, q3 / n)
 
 
 def matrix_from_quat(q: ArrayLike) -> np.ndarray:
