@@ -89,7 +89,8 @@ class PaperConfig:
     detector: str = 'extended'      # the paper planner is for the extended-range detector
     handover: bool = False          # Fig. 13's order: a cusp met while tracing hands over
     #                                 to the vast node beyond it at once (selectable)
-    circuit_sweeps: bool = False    # ours: no laps in a cell its circuit has swept
+    circuit_sweeps: bool = False    # ours: no laps in a cell its circuit has swept (loses
+    #                                 coverage on held-out worlds: not safe)
 
     def detector_range(self) -> float:
         """Range of the detector used for coverage: delta."""
