@@ -159,9 +159,12 @@ def test_sonar_killed_planner_stops_and_says_why_then_resumes_on_respawn(tmp_pat
 
 
 def test_simulator_killed_every_node_warns_once_and_idles(tmp_path):
-    """Coverage graph with the recorder. SIGKILL the simulator: every other node warns once
-    that /clock stopped (log and /diagnostics) and uses well under 100 % of a core."""
+    """Coverage graph with the recorder. Once every node runs on sim time (the monitor reports
+    coverage, the planner commands the robot), SIGKILL the simulator: every other node warns
+    once that /clock stopped (log and /diagnostics) and uses well under 100 % of a core. (A
+    node that never saw /clock advance does not warn: its simulator has not started.)"""
     from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+    from geometry_msgs.msg import Twist
     from std_msgs.msg import Float64
 
     from paramotion.qos import LATCHED_QOS, STATE_QOS
@@ -174,7 +177,10 @@ def test_simulator_killed_every_node_warns_once_and_idles(tmp_path):
         fractions = []
         w.subscribe(Float64, '/coverage/covered_fraction',
                     lambda m: fractions.append(m.data), LATCHED_QOS)
-        assert w.spin_until(lambda: fractions and fractions[-1] > 0.0, 90), log.text()[-3000:]
+        commands = []
+        w.subscribe(Twist, '/cmd_vel', commands.append, STATE_QOS)
+        assert w.spin_until(lambda: fractions and fractions[-1] > 0.0 and commands, 90), \
+            log.text()[-3000:]
         kill(proc(launcher, 'coverage_sim'))
         others = [p for p in launcher.procs if p.action.executable != 'coverage_sim']
         names = [p.action.label for p in others]
