@@ -221,41 +221,36 @@ def _readable(bag):
         return 0
 
 
-def test_a_process_still_alive_after_a_signal_prints_where_its_threads_are(tmp_path):
-    """A clean-up that hangs (here: a sleep standing in for a stuck call) prints the stack of
-    each thread before launch escalates, so a hang in the field says where it is."""
-    script = tmp_path / 'hang.py'
+def _signalled_process(tmp_path, report_s, cleanup):
+    """Run a process that installs the node signal policy with ``HANG_REPORT_S`` =
+    ``report_s``, signals itself once while spinning, runs ``cleanup`` (Python source of a
+    function body) and exits 0; returns its completed run (stderr captured)."""
+    script = tmp_path / 'signalled.py'
     script.write_text(
         'import os, signal, time\n'
         'import paramotion.shutdown as s\n'
-        's.HANG_REPORT_S = 0.5\n'
+        f's.HANG_REPORT_S = {report_s}\n'
         'signals = s.ShutdownSignals().install()\n'
         'signals.spinning()\n'
         'def stuck_in_cleanup():\n'
-        '    time.sleep(1.5)\n'
+        f'    {cleanup}\n'
         'os.kill(os.getpid(), signal.SIGINT)\n'
         'stuck_in_cleanup()\n'
         'signals.finish()\n'
         's.exit_now(0)\n')
-    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+    return subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
                           timeout=60)
+
+
+def test_a_process_still_alive_after_a_signal_prints_where_its_threads_are(tmp_path):
+    """A clean-up that hangs (here: a sleep standing in for a stuck call) prints the stack of
+    each thread before launch escalates, so a hang in the field says where it is."""
+    done = _signalled_process(tmp_path, 0.5, 'time.sleep(1.5)')
     assert done.returncode == 0, done.stderr
     assert 'Timeout (0:00:00.500000)!' in done.stderr, done.stderr
     assert 'stuck_in_cleanup' in done.stderr, done.stderr
 
 
 def test_a_process_that_stops_in_time_prints_no_stacks(tmp_path):
-    script = tmp_path / 'quick.py'
-    script.write_text(
-        'import os, signal, time\n'
-        'import paramotion.shutdown as s\n'
-        's.HANG_REPORT_S = 1.0\n'
-        'signals = s.ShutdownSignals().install()\n'
-        'signals.spinning()\n'
-        'os.kill(os.getpid(), signal.SIGINT)\n'
-        'time.sleep(0.2)\n'
-        'signals.finish()\n'
-        's.exit_now(0)\n')
-    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
-                          timeout=60)
+    done = _signalled_process(tmp_path, 1.0, 'time.sleep(0.2)')
     assert done.returncode == 0 and done.stderr == '', done.stderr
