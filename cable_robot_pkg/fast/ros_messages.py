@@ -116,16 +116,15 @@ def joint_state_msg(stamp: Time, names: Sequence[str], position: ArrayLike,
                     velocity: ArrayLike | None = None,
                     effort: ArrayLike | None = None,
                     msg: JointState | None = None) -> JointState:
-    """sensor_msgs/JointState (``msg``: a message to refill instead of a new one)."""
+    """sensor_msgs/JointState (``msg``: a message to refill instead of a new one; a field
+    not given is left empty, as in a new message, whatever the refilled one held)."""
     if msg is None:
         msg = JointState()
     msg.header.stamp = stamp
     msg.name = list(names)
     msg.position = _doubles(position)
-    if velocity is not None:
-        msg.velocity = _doubles(velocity)
-    if effort is not None:
-        msg.effort = _doubles(effort)
+    msg.velocity = _doubles(velocity) if velocity is not None else []
+    msg.effort = _doubles(effort) if effort is not None else []
     return msg
 
 
