@@ -87,7 +87,7 @@ class PaperConfig:
     stuck_time: float = 6.0         # s commanded but not moving -> the target is given up
     max_stuck: int = 6              # stuck events in a row before the run stops
     detector: str = 'extended'      # the paper planner is for the extended-range detector
-    handover: bool = False          # Fig. 13's order: a cusp met while tracing hands over
+    handover: bool = True           # Fig. 13's order: a cusp met while tracing hands over
     #                                 to the vast node beyond it at once (selectable)
     circuit_sweeps: bool = False    # ours: no laps in a cell its circuit has swept (loses
     #                                 coverage on held-out worlds: not safe)
@@ -201,7 +201,8 @@ class PaperPlanner(EventSensing, CreateNode, MorseDecompCoverage, TraceGVD, Find
             self._gvd_last = self.pose[:2]
             key = (int(self.pose[0] // 1.0), int(self.pose[1] // 1.0))
             self.gvd_trace.setdefault(key, []).append((*self.pose[:2], self.sweeps,
-                                                       float(head[0]), float(head[1])))
+                                                       float(head[0]), float(head[1]),
+                                                       self.current))
         if t - self.t_first_sweep >= self.cfg.warmup and self.mode in ('lap', 'boundary',
                                                                       'gvd'):
             self._sense_cusp(t, prev)

@@ -39,12 +39,12 @@ FIG13 = {'name': 'fig13',
 
 
 @functools.lru_cache(maxsize=None)
-def _run(name):
+def _run(name, handover=True):
     if name == 'island_hall':       # an 18 x 12 m hall with a 2 x 2 m pillar
         world = load_world(WORLDS / 'island_hall.json')
     else:
         world = world_from_dict({w['name']: w for w in (TWO_ROOMS, T_HALL, FIG13)}[name])
-    r = run_kinematic(world, PaperConfig(), max_time=1500)
+    r = run_kinematic(world, PaperConfig(handover=handover), max_time=1500)
     assert r['state'] == 'done' and r['covered_fraction'] >= 0.99
     return r['planner']
 
@@ -143,17 +143,20 @@ def test_a_pillar_splits_the_hall_cell_at_its_left_side():
     assert sorted(c.prev_span[1] < 6.0 for c in p.nodes[0].cells[1:3]) == [False, True]
 
 
-@pytest.mark.slow                     # a closed-loop run, 20-35 s
-def test_fig13_corridor_is_one_narrow_node_joined_by_both_of_its_cusps():
+@pytest.mark.slow                     # a closed-loop run, 20-35 s per mode
+@pytest.mark.parametrize('handover', [True, False], ids=['fig13_order', 'algorithm1_order'])
+def test_fig13_corridor_is_one_narrow_node_joined_by_both_of_its_cusps(handover):
     """Fig. 13: the corridor's GVD edge from Cs1 reaches the meet point Mp1 (14, 7), whose two
-    branches end at the right room's cusps Cs2 (19.73, 9) and Cs3 (19.73, 5). Tracing the
-    corridor first (Algorithm 1 covers n before FindUncoveredNode), both cusps create a vast
-    node, Cs2's first (the branch nearest the heading at Mp1; Fig. 13's narration also enters
-    the right room at Cs2); the right room's circuit finds the two are one cell, and its
-    sensing of the other
-    cusp joins the corridor's node (an edge, no new node). The graph: two vast nodes, one
+    branches end at the right room's cusps Cs2 (19.73, 9) and Cs3 (19.73, 5). The branch
+    nearest the heading at Mp1 reaches Cs2 first, which creates the right room's vast node.
+    In Fig. 13's order (the default) the robot covers the room from Cs2; the room's circuit
+    senses Cs3 and creates a narrow node there, whose trace back towards Mp1 joins the
+    corridor's traced GVD edge: the two narrow nodes are one cell, the later one merges into
+    the corridor's node and its edge to the room is the corridor's. In Algorithm 1's order
+    (``handover`` off: the corridor traced whole first) both cusps create a vast node; the
+    room's circuit finds the two are one cell. Either way the graph: two vast nodes, one
     corridor node with three edges, the corner nodes."""
-    p = _run('fig13')
+    p = _run('fig13', handover)
     _check_graph(p, [('narrow', (1, 1)), ('vast', (2, 2)), ('narrow', (10, 2)),
                      ('narrow', (12 - S1, 7)), ('narrow', (10, 12)), ('narrow', (2, 12)),
                      ('vast', (18 + S1, 9)), ('narrow', (20, 2)), ('narrow', (28, 2)),
@@ -166,8 +169,14 @@ def test_fig13_corridor_is_one_narrow_node_joined_by_both_of_its_cusps():
     assert sorted(min(range(3), key=lambda k: math.dist(m[:2], hand[k]))
                   for m in corridor.meets) == [0, 1, 2]
     assert all(min(math.dist(m[:2], h) for h in hand) < TOL for m in corridor.meets)
-    ends = sorted(b.end for b in corridor.branches)
-    assert ends.count('cusp') >= 2                # from Cs1 and through Mp1 to Cs2 / Cs3
+    # The corridor is traced to both of its cusps in the right room: a branch ends at Cs2
+    # (traced from Cs1 through Mp1) and one starts or ends at Cs3 (traced from the room).
+    for cusp in ((18 + S1, 9), (18 + S1, 5)):
+        assert any(math.dist(b.start, cusp) < TOL or (b.end == 'cusp' and
+                                                       math.dist(b.end_xy, cusp) < TOL)
+                   for b in corridor.branches), cusp
+    assert [n.merged_into for n in p.nodes if n.kind == 'narrow' and
+            n.merged_into is not None] in ([], [3])
     # Creation order: the left room's nodes, the corridor, then the right room's (Fig. 13).
     assert [n.id for n in p.nodes if n.kind == 'vast'][:2] == [1, 6]
     split = [c for c in p.nodes[1].critical if c[2].startswith('split')]

@@ -73,7 +73,9 @@ class TraceGVD:
         start = self.task.setdefault('sweep0', self.sweeps)
         if self.task['far'] > 1.0 and self._near_trace(self.pose[:2], 0.35, start, tang) and \
                 self._near_trace(self.pose[:2] - 0.6 * tang, 0.35, start, tang):
-            return self._end_branch('traced')     # on a GVD edge traced before: joined it
+            owner = self._trace_owner(self.pose[:2], 0.35, start, tang)
+            self._end_branch('traced')            # on a GVD edge traced before: joined it
+            return self._same_narrow(n, owner)
         for m in n.meets:
             if math.dist(m[:2], self.pose[:2]) < 0.5 and \
                     math.dist(m[:2], br.start) > 0.7 and m[2] != self.task.get('meet'):
@@ -105,11 +107,48 @@ class TraceGVD:
         """A point of a traced GVD edge lies within ``within`` of ``q`` (traced before sweep
         ``before``, and along the direction ``along`` or against it within 30 degrees, if
         given: the same edge, not one that crosses it)."""
+        return self._trace_owner(q, within, before, along, any_node=True) is not None
+
+    def _trace_owner(self, q, within, before=None, along=None, any_node=False):
+        """The node that traced the nearest GVD edge point matching :meth:`_near_trace`'s
+        test (True for any match with ``any_node``), None if no point matches."""
         bx, by = int(q[0] // 1.0), int(q[1] // 1.0)
-        return any(math.dist(p[:2], q) < within and (before is None or p[2] < before) and
-                   (along is None or abs(p[3] * along[0] + p[4] * along[1]) > 0.87)
-                   for gx in (bx - 1, bx, bx + 1) for gy in (by - 1, by, by + 1)
-                   for p in self.gvd_trace.get((gx, gy), ()))
+        best = None
+        for gx in (bx - 1, bx, bx + 1):
+            for gy in (by - 1, by, by + 1):
+                for p in self.gvd_trace.get((gx, gy), ()):
+                    d = math.dist(p[:2], q)
+                    if d < within and (before is None or p[2] < before) and \
+                            (along is None or abs(p[3] * along[0] + p[4] * along[1]) > 0.87):
+                        if any_node:
+                            return True
+                        if best is None or d < best[0]:
+                            best = (d, p[5])
+        return None if best is None else best[1]
+
+    def _same_narrow(self, n, owner):
+        """A trace of narrow node ``n`` has joined a GVD edge traced while covering narrow
+        node ``owner``: the two are one narrow cell (a corridor entered through both of its
+        cusps, Fig. 13's Cs2 and Cs3). ``n`` becomes that node: its branches, meet points and
+        edges are the earlier node's, which goes on being covered."""
+        if owner is None:
+            return None
+        m = self.nodes[self.same_node(owner)]
+        if m is n or m.kind != 'narrow' or n.kind != 'narrow':
+            return None
+        lo, hi = (m, n) if m.id < n.id else (n, m)
+        hi.merged_into, hi.covered = lo.id, True
+        lo.branches.extend(hi.branches)
+        lo.meets.extend(hi.meets)
+        hi.branches, hi.meets = [], []
+        self.edges[:] = [(v, lo.id if w == hi.id else w, c) for v, w, c in self.edges]
+        self._dedupe_edges()
+        hi.closed_by = self._record(self.t_sweep, 'same_cell', hi.anchor,
+                                    f'narrow node {hi.id} is narrow node {lo.id}: its GVD '
+                                    "trace joined that node's edge")
+        lo.covered = False
+        self.current = lo.id
+        return None
 
     def _cusp_ahead(self, heading):
         """D has risen above delta on the GVD edge (Fig. 11): the robot has just passed its
