@@ -40,14 +40,15 @@ def bench_one_process(duration: float = 10.0, repeat: int = 3) -> dict[str, floa
             'fast_real_time_factor_cpu': float(cpus[len(cpus) // 2])}
 
 
-def cpu_breakdown(duration: float = 3.0) -> dict[str, float]:
+def cpu_breakdown(duration: float = 3.0, launch_args: dict | None = None) -> dict[str, float]:
     """Where the one-process FAST graph's CPU time goes: CPU seconds per sim second of a
     lock-step run (as ``run_graph`` composes it) by part: the simulator's physics step
     (PyBullet, cable and wind models), its state messages, each node's callbacks (timers and
     subscriptions, message conversion and the control algorithm), and the rest (the executor,
     messages taken, ``/clock``). Callbacks are timed with ``time.process_time``; the physics
     step is also split into the cable wrench, the wind wrench, the servo commands and the rest
-    (PyBullet's step and the winches), rows "of which" that are not added again."""
+    (PyBullet's step and the winches), rows "of which" that are not added again.
+    ``launch_args``: launch arguments over the defaults (e.g. ``{'config': path}``)."""
     from collections import Counter
 
     from cable_robot_pkg.fast.scenario import LAUNCH_FILE, detach_qos_event_handlers
@@ -67,7 +68,7 @@ def cpu_breakdown(duration: float = 3.0) -> dict[str, float]:
         return wrapper
 
     with Graph() as graph:
-        nodes, _ = graph_from_launch(graph, LAUNCH_FILE, {})
+        nodes, _ = graph_from_launch(graph, LAUNCH_FILE, dict(launch_args or {}))
         sim = nodes['fast_sim']
         sim.advance_time = timed('fast_sim: physics step (PyBullet, cables, wind)',
                                  sim.advance_time)
