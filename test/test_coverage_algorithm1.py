@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from coverage_pkg.algorithm1 import Branch, Node, PaperConfig, PaperPlanner, TracedPaths
+from coverage_pkg.algorithm1 import Branch, MorseCell, Node, PaperConfig, PaperPlanner, TracedPaths
 from coverage_pkg.kinematic import run_kinematic
 from coverage_pkg.sonar import SonarRing
 from coverage_pkg.world import load_world, world_from_dict
@@ -247,3 +247,35 @@ def test_a_circuit_runs_on_past_its_start_in_the_handover_mode(handover):
     assert circ['done'] and circ['back_at'] is not None
     run_on = circ['length'] - circ['back_at']
     assert (run_on >= 0.5) if handover else (run_on < 0.1)
+
+
+@pytest.mark.parametrize('circuit_y, split', [(2.0, False), (2.3, True), (4.5, True)])
+def test_a_lap_ending_on_the_circuit_path_before_its_wall_is_no_obstacle_inside_the_cell(
+        circuit_y, split):
+    """A lap ends at D = delta, 2 m above a wall (its point p). Where it ends on the path of
+    the cell's boundary circuit and p lies within delta + 0.15 m of that path, the circuit
+    kept D = delta from p's wall: the wall is followed, no critical point, no second circuit,
+    even though the circuit's recorded closest echoes miss p (gen_rooms_202's right room,
+    where the cones' spacing left the wall below a corner of the circuit unrecorded). A
+    circuit that passed 2.3 m from p (between two pillars, following the other one) or far
+    away did not follow it: the lap meets an obstacle inside the cell, a split and a circuit
+    around it."""
+    p = _planner()
+    p.pose, p.t_sweep = (12.7, 2.0, 0.0), 10.0
+    p.angles = np.linspace(-math.pi, math.pi, 16, endpoint=False)
+    p.ranges = np.full(16, 5.0)
+    p.ranges[int(np.argmin(np.abs(p.angles + math.pi / 2)))] = 2.0   # the wall y = 0 below
+    n = Node(0, 'vast', (11.7, 2.5))
+    trace = [(x, circuit_y) for x in np.arange(9.6, 12.8, 0.3)]
+    n.circuits.append({'start': trace[0], 'done': True, 'trace': trace,
+                       'wall': [(x, -0.8) for x, _ in trace]})   # its echoes recorded elsewhere
+    p.nodes.append(n)
+    p.current = 0
+    cell = MorseCell(0, (12.7, 3.2), +1)
+    n.cells.append(cell)
+    p._island(n, cell, -1)
+    assert (len(n.circuits) == 2) == split
+    assert bool(n.critical) == split
+    if split:
+        assert n.critical[0][2].startswith('split') and \
+            math.dist(n.critical[0][:2], (12.7, 0.0)) < 0.1

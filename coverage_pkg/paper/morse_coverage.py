@@ -253,15 +253,23 @@ class MorseDecompCoverage:
         """The lap ends at an obstacle no boundary circuit has followed: an obstacle inside
         the Morse cell. Where the slice meets it is a critical point (the slice splits); the
         obstacle's boundary is followed next, and a successor cell resumes the slice on its
-        far side. The current cell goes on, on the near side."""
+        far side. The current cell goes on, on the near side. An obstacle is followed where a
+        circuit recorded a closest echo within 0.6 m of the lap's end point ``p``, or where
+        the lap ends on a circuit's path with ``p`` within delta (plus the equal-echo
+        tolerance) of it: there the circuit kept D = delta, so ``p`` was among its closest
+        obstacles (the cones' spacing can leave such a point unrecorded at a corner of the
+        circuit)."""
         if 'critical' in self.cfg.without:
             return
         d = self.echo(math.pi / 2 * direction)
         p = (self.pose[0], self.pose[1] + direction * d)
+        near = self.det + self.cfg.event_tolerance
         for c in n.circuits:                # followed already, or about to be
             if (not c['done'] and math.dist(c['start'], p) < self.det + 0.5) or any(
-                    math.dist(q, p) < 0.6 for q in c.get('wall', ())):
-                return
+                    math.dist(q, p) < 0.6 for q in c.get('wall', ())) or any(
+                    math.dist(q, self.pose[:2]) < 0.5 and math.dist(q, p) <= near
+                    for q in c.get('trace', ())):
+                return                      # (or on its path, p among its closest obstacles)
         idx = self._critical(n, p, 'split: the slice meets an obstacle inside the cell')
         if idx is None:
             return
