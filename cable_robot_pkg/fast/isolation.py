@@ -975,12 +975,14 @@ class IsolationController:
         from 40 ms of latency with the unscheduled predictor). The schedule bounds the loop's
         gain and keeps the best isolation in the trolley's vibration band.
 
-        A change of the horizon counts from half a frame period on (at least 1 ms): across
+        A change of the horizon counts from one frame period on (at least 1 ms): across
         processes the controller's sim-time clock advances in steps of the simulator's
         publish period (the frame period) and reaches it in another order than the frames, so
-        each measured delay is only known to within a frame period; a schedule (64 predictor
-        responses, tens of ms of CPU) on every smaller change would follow that quantisation
-        (measured: about ten schedules per sim second with the simulator a period ahead)."""
+        each measured delay is only known to within a frame period, and the filtered latency
+        wanders by up to a period (measured: 21 to 24 ms of horizon for 20 ms of latency); a
+        schedule (64 predictor responses, tens of ms of CPU) on every smaller change would
+        follow that quantisation (measured: about ten schedules per sim second with 1 ms, 2.4
+        with half a period, with the simulator a period ahead)."""
         if self.period is None or self.latency is None:
             return False
         horizon = max(self.latency + self.lead, 0.0)
@@ -989,7 +991,7 @@ class IsolationController:
         stamp = self._frame[0]
         due = self._spectrum_time is None or stamp - self._spectrum_time >= \
             self.reschedule_period
-        if old is not None and abs(horizon - old[0]) < max(1e-3, 0.5 * old[1]) \
+        if old is not None and abs(horizon - old[0]) < max(1e-3, old[1]) \
                 and abs(self.period - old[1]) < 0.05 * old[1] \
                 and abs(self.views - old[2]) < 0.25 and not due:
             return False
