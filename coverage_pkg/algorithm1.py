@@ -88,7 +88,8 @@ class PaperConfig:
     max_stuck: int = 6              # stuck events in a row before the run stops
     detector: str = 'extended'      # the paper planner is for the extended-range detector
     handover: bool = True           # Fig. 13's order: a cusp met while tracing hands over
-    #                                 to the vast node beyond it at once (selectable)
+    #                                 to the vast node beyond it at once (False: Algorithm
+    #                                 1's pseudocode order, the narrow node traced whole)
     circuit_sweeps: bool = False    # ours: no laps in a cell its circuit has swept (loses
     #                                 coverage on held-out worlds: not safe)
 
@@ -143,6 +144,7 @@ class PaperPlanner(EventSensing, CreateNode, MorseDecompCoverage, TraceGVD, Find
         self.nodes, self.edges = [], []            # N, E; edge: (vast id, narrow id, cusp)
         self.events = []                           # (t, kind, x, y, detail)
         self.segments = []                         # [primitive, length m]
+        self.retraced = 0.0                        # m of 'gvd' driven back along traced edges
         self.decisions = []
         self.paths = TracedPaths(config.radius + 0.1)
         self.event_filter = None
@@ -171,6 +173,8 @@ class PaperPlanner(EventSensing, CreateNode, MorseDecompCoverage, TraceGVD, Find
             kind = 'gvd' if self.mode == 'transit' and self._on_gvd else self.mode
             if self.pose is not None and kind:
                 step = math.dist(self.pose[:2], (x, y))
+                if kind == 'gvd' and self.mode == 'transit':
+                    self.retraced += step          # a traced GVD edge followed back
                 if self.segments and self.segments[-1][0] == kind:
                     self.segments[-1][1] += step
                 elif step > 0:

@@ -20,6 +20,7 @@ and draws both planners' runs on the demo world (``coverage_paper_demo.png``,
 """
 from __future__ import annotations
 
+import math
 import os
 import platform
 import sys
@@ -83,7 +84,43 @@ def _run(world, config, max_time=3000.0):
         row['primitive_share'] = 1.0 - lengths.get('transit', 0.0) / total if total else None
         scale = r['path_length'] / total / r['lower_bound'] if total else 0.0
         row['where'] = ' / '.join(f'{lengths.get(k, 0.0) * scale:.2f}' for k in PRIMITIVES)
+        idle = swept_before(r)
+        bound = r['lower_bound']
+        row['lengths'] = {k: lengths.get(k, 0.0) * scale for k in PRIMITIVES}
+        row['lengths']['retrace'] = r['planner'].retraced * scale
+        row['idle'] = {k: v / bound for k, v in idle.items()}
     return row
+
+
+def swept_before(run: dict[str, object], per_metre: float = 0.02) -> dict[str, float]:
+    """Path length per primitive driven over CVS the detector had swept already: the run's
+    path replayed through a fresh :class:`coverage_pkg.cvs.CoverageAccumulator`, a step
+    counting when it adds less than ``per_metre`` square metres of CVS per metre. Each path
+    step takes the primitive of the planner's segment at the same share of the path length."""
+    from coverage_pkg.cvs import CoverageAccumulator
+    segs = run['planner'].segments
+    total = sum(length for _, length in segs)
+    path = run['path']
+    out = dict.fromkeys(PRIMITIVES, 0.0)
+    if not segs or len(path) < 2 or not total:
+        return out
+    acc = CoverageAccumulator(run['accumulator'].cvs)
+    mask, area = acc.cvs.mask, acc.cvs.res ** 2
+    acc.add_pose(*path[0])
+    ends = np.cumsum([length for _, length in segs]) / total
+    length = sum(math.dist(a, b) for a, b in zip(path, path[1:]))
+    done, k = 0.0, 0
+    for a, b in zip(path, path[1:]):
+        step = math.dist(a, b)
+        rows, cols = acc.visible(*b)
+        new = int((mask[rows, cols] & ~acc.seen[rows, cols]).sum()) * area
+        acc.seen[rows, cols] = True
+        done += step / length
+        while k < len(segs) - 1 and done > ends[k]:
+            k += 1
+        if new < per_metre * step:
+            out[segs[k][0]] = out.get(segs[k][0], 0.0) + step
+    return out
 
 
 def _rows_table(rows, first):
@@ -268,6 +305,26 @@ def write_report(out_dir: Path, quick: bool = False) -> list[Path]:
                           + (f', mean primitive share '
                              f'{_pct(float(np.mean([r["primitive_share"] for r in mine])))}'
                              if name == 'paper' else '')]
+    lines += ['', "## Where the paper planner's path goes", '',
+              'Per generated set, the mean length driven by each primitive as a multiple of '
+              'the bound, and (in brackets) how much of it ran over CVS the detector had swept '
+              'already (less than 0.02 m^2 of new CVS per metre: `coverage_pkg/report.py: '
+              'swept_before`). gvd back: the part of gvd driven back along GVD edges traced '
+              'before (to the next open branch or node).', '']
+    where = []
+    for group in (g for g in sets if g.startswith('seed')):
+        mine = [r for r in rows if r['planner'] == 'paper' and r['set'] == group]
+        if not mine:
+            continue
+
+        def mean(key, part):
+            return float(np.mean([r[key].get(part, 0.0) for r in mine]))
+        cells = [f"{mean('lengths', k):.2f} ({mean('idle', k):.2f})" for k in PRIMITIVES]
+        where.append((group, *cells, f"{mean('lengths', 'retrace'):.2f}",
+                      _num(float(np.mean([r['ratio'] for r in mine])))))
+    lines += _table(['set', 'lap (swept before)', 'boundary (swept before)',
+                     'gvd (swept before)', 'transit (swept before)', 'of gvd: back',
+                     'path / bound'], where)
     lines += ['', '## Modes of the paper planner', '',
               "The paper planner above runs Algorithm 1 in Fig. 13's order (the default: "
               '`handover` on, every other switch off). Each row below changes one switch, on '
