@@ -273,9 +273,7 @@ def register(subparsers):
     parser.add_argument('--record-topics', default='',
                         help='comma-separated topics to record (default: ' + ','.join(TOPICS)
                         + ')')
-    parser.set_defaults(func=_run)
-    from coverage_pkg.sweep import register_sweep
-    register_sweep(parser)  # paramotion coverage sweep --worlds DIR (Dask)
+    parser.set_defaults(func=_run)  # coverage_pkg.sweep adds ``sweep`` under it
     bench = subparsers.add_parser(
         'coverage-benchmark', help='time the coverage planner and the whole graph',
         description='Run the coverage graph without recording; print the planner update time '

@@ -15,6 +15,7 @@ import os
 from collections.abc import Mapping
 from pathlib import Path
 
+from coverage_pkg.scenario import DEFAULT_PLANNER, PLANNERS, run_coverage, validate_inputs
 from paramotion.errors import UserError
 from paramotion.scenario_io import add_output_args, output_dir, write_json
 from paramotion.sweep import add_dask_args, run_args, run_tasks
@@ -23,7 +24,6 @@ from paramotion.sweep import add_dask_args, run_args, run_tasks
 def coverage_case(case: Mapping[str, object]) -> dict[str, object]:
     """One world of the sweep: the result dict of :func:`run_coverage` (JSON-ready).
     Module-level so that Dask can ship it to a worker process."""
-    from coverage_pkg.scenario import DEFAULT_PLANNER, run_coverage
     result = run_coverage(case['world'], case['delta'], case['radius'], case['detector'],
                           bag_dir=None, max_sim_time=case['max_sim_time'],
                           sonar_max_range=case['sonar_max_range'], seed=case['seed'],
@@ -44,7 +44,6 @@ def summary_row(name: str, result: Mapping[str, object]) -> dict[str, object]:
 
 
 def _sweep(args):
-    from coverage_pkg.scenario import validate_inputs
     folder = Path(args.worlds)
     if not folder.is_dir():
         raise UserError(f'--worlds {args.worlds}: not a directory')
@@ -106,10 +105,9 @@ def register_sweep(parser: argparse.ArgumentParser) -> None:
     sweep.add_argument('--worlds', required=True, help='directory of world JSON files')
     sweep.add_argument('--delta', type=float, default=2.0, help='detector range (m)')
     sweep.add_argument('--radius', type=float, default=0.25, help='robot radius (m)')
-    from coverage_pkg.scenario import DEFAULT_PLANNER, PLANNERS
     sweep.add_argument('--planner', choices=PLANNERS, default=DEFAULT_PLANNER,
                        help='paper: Algorithm 1 (coverage_pkg/algorithm1.py); grid: ours, '
-                            'the default')
+                            f'the frontier-driven grid planner. Default: {DEFAULT_PLANNER}')
     sweep.add_argument('--detector', choices=('extended', 'robot'), default='extended',
                        help='extended-range detector or the robot-size baseline')
     sweep.add_argument('--sonar-max-range', type=float, default=5.0, help='sonar max range (m)')
@@ -120,3 +118,9 @@ def register_sweep(parser: argparse.ArgumentParser) -> None:
     add_output_args(sweep, default_out=os.path.join('bags', 'runs', f'coverage-sweep-{stamp}'))
     add_dask_args(sweep)
     sweep.set_defaults(func=_sweep)
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``sweep`` to the ``paramotion coverage`` subcommand that
+    :mod:`coverage_pkg.scenario` registered (``paramotion.cli`` registers that module first)."""
+    register_sweep(subparsers.choices['coverage'])

@@ -11,11 +11,13 @@ from collections.abc import Sequence
 
 from paramotion.errors import UserError
 
-# Modules providing ``register(subparsers)``; each adds one top-level subcommand.
+# Modules providing ``register(subparsers)``; each adds one top-level subcommand, or a
+# subcommand's action to one registered above it.
 SUBCOMMAND_MODULES = [
     'paramotion.smoke.scenario',          # paramotion smoke
     'paramotion.bag.cli',                 # paramotion bag record|play|info
     'coverage_pkg.scenario',              # paramotion coverage
+    'coverage_pkg.sweep',                 # paramotion coverage sweep --worlds DIR (Dask)
     'climber_pkg.scenario',               # paramotion climb
     'cable_robot_pkg.fast.scenario',      # paramotion fast
     'cable_robot_pkg.cdrpm.cli',         # paramotion workspace ...
