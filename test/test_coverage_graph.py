@@ -122,7 +122,7 @@ def test_the_paper_planner_is_the_default_everywhere():
     coverage sweep all run Algorithm 1 unless asked for the grid planner."""
     import argparse
 
-    from coverage_pkg import demo, scenario
+    from coverage_pkg import demo, scenario, sweep
     from coverage_pkg.planner_node import CoveragePlannerNode
     from paramotion import launch_xml
     assert scenario.DEFAULT_PLANNER == 'paper'
@@ -130,6 +130,7 @@ def test_the_paper_planner_is_the_default_everywhere():
     assert launch_xml.load('coverage').node('coverage_planner').params['planner'] == 'paper'
     sub = argparse.ArgumentParser().add_subparsers()
     scenario.register(sub)
+    sweep.register(sub)    # ``sweep`` under ``coverage``, as paramotion.cli registers it
     demo.register(sub)
     for name, args in (('coverage', ['--world', 'w.json']), ('coverage-benchmark',
                                                              ['--world', 'w.json']),
