@@ -107,24 +107,26 @@ class TraceGVD:
         """A point of a traced GVD edge lies within ``within`` of ``q`` (traced before sweep
         ``before``, and along the direction ``along`` or against it within 30 degrees, if
         given: the same edge, not one that crosses it)."""
-        return self._trace_owner(q, within, before, along, any_node=True) is not None
+        return next(self._trace_points(q, within, before, along), None) is not None
 
-    def _trace_owner(self, q, within, before=None, along=None, any_node=False):
+    def _trace_owner(self, q, within, before=None, along=None):
         """The node that traced the nearest GVD edge point matching :meth:`_near_trace`'s
-        test (True for any match with ``any_node``), None if no point matches."""
+        test, None if no point matches."""
+        _, p = min(self._trace_points(q, within, before, along), key=lambda m: m[0],
+                   default=(None, None))
+        return None if p is None else p[5]
+
+    def _trace_points(self, q, within, before, along):
+        """(distance, point) of each traced GVD edge point (x, y, sweep, heading x, heading y,
+        tracing node) matching :meth:`_near_trace`'s test, from the 1 m buckets around ``q``."""
         bx, by = int(q[0] // 1.0), int(q[1] // 1.0)
-        best = None
         for gx in (bx - 1, bx, bx + 1):
             for gy in (by - 1, by, by + 1):
                 for p in self.gvd_trace.get((gx, gy), ()):
                     d = math.dist(p[:2], q)
                     if d < within and (before is None or p[2] < before) and \
                             (along is None or abs(p[3] * along[0] + p[4] * along[1]) > 0.87):
-                        if any_node:
-                            return True
-                        if best is None or d < best[0]:
-                            best = (d, p[5])
-        return None if best is None else best[1]
+                        yield d, p
 
     def _same_narrow(self, n, owner):
         """A trace of narrow node ``n`` has joined a GVD edge traced while covering narrow
