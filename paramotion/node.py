@@ -36,7 +36,12 @@ from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
 
 from paramotion.errors import ParameterError, UserError
-from paramotion.shutdown import ShutdownSignals, ShutdownWaker, exit_now
+from paramotion.shutdown import (
+    ShutdownSignals,
+    ShutdownWaker,
+    bounded_middleware_teardown,
+    exit_now,
+)
 
 _INT_LIMIT = 2 ** 62
 
@@ -181,6 +186,13 @@ class ParamotionNode(Node):
             raise ParameterError(f'{node_name}: {reason}')
         self.params = SimpleNamespace(**values)
         self.add_on_set_parameters_callback(self._on_set_parameters)
+
+    def destroy_node(self) -> None:
+        """Destroy the node's rcl entities; in a node process stopping on a signal, within
+        :data:`paramotion.shutdown.TEARDOWN_LIMIT_S` (a subclass's own clean-up, e.g. closing
+        a bag, runs before it calls this and is not limited)."""
+        with bounded_middleware_teardown(self.get_name()):
+            return super().destroy_node()
 
     def check_params(self, values: dict[str, Any]) -> str | None:
         """Cross-parameter rules: return a one-line reason if ``values`` are inconsistent."""

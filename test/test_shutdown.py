@@ -20,6 +20,7 @@ import yaml
 from rclpy.executors import SingleThreadedExecutor
 from std_msgs.msg import String
 
+import paramotion.shutdown as s
 from paramotion.bag.reader import bag_info, read_messages
 from paramotion.launch import NodeProcess, wait_until
 
@@ -254,3 +255,86 @@ def test_a_process_still_alive_after_a_signal_prints_where_its_threads_are(tmp_p
 def test_a_process_that_stops_in_time_prints_no_stacks(tmp_path):
     done = _signalled_process(tmp_path, 1.0, 'time.sleep(0.2)')
     assert done.returncode == 0 and done.stderr == '', done.stderr
+
+
+def test_a_teardown_stuck_holding_the_interpreter_lock_ends_with_exit_0(tmp_path):
+    """The middleware teardown after a signal is bounded even when the stuck call holds the
+    interpreter lock (here a C ``sleep`` called without releasing it, as a C++ call into
+    rcl/DDS does): stacks, one line saying so, exit 0, well before launch escalates (5 s)."""
+    started = time.monotonic()
+    done = _signalled_process(
+        tmp_path, 4.5, "with s.bounded_middleware_teardown('probe_node'): "
+        'import ctypes; ctypes.PyDLL(None).sleep(30); print("not reached")')
+    took = time.monotonic() - started
+    assert done.returncode == 0, done.stderr
+    assert 'probe_node: the middleware teardown' in done.stdout, done.stdout
+    assert 'not reached' not in done.stdout
+    assert 'stuck_in_cleanup' in done.stderr, done.stderr
+    assert took < 4.5 + 0.5 * s.TEARDOWN_LIMIT_S, took
+
+
+@pytest.mark.parametrize('signalled', [False, True], ids=['no-signal', 'teardown-in-time'])
+def test_the_teardown_limit_holds_only_while_a_signalled_teardown_runs(tmp_path, signalled):
+    """Without a signal (a node that ends on its own, a test) nothing is armed; after a signal,
+    a teardown that ends in time disarms it. Either way what follows the teardown (longer than
+    the limit here) runs to its end."""
+    script = tmp_path / 'teardown.py'
+    script.write_text(
+        'import os, signal, time\n'
+        'import paramotion.shutdown as s\n'
+        's.ShutdownSignals().install().spinning()\n'
+        + ('os.kill(os.getpid(), signal.SIGINT)\n' if signalled else '')
+        + "with s.bounded_middleware_teardown('probe_node'):\n"
+        '    time.sleep(0.2)\n'
+        f'time.sleep({s.TEARDOWN_LIMIT_S + 0.5})\n'
+        "print('reached')\n")
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                          timeout=60)
+    assert done.returncode == 0 and done.stdout == 'reached\n', done.stdout + done.stderr
+    assert done.stderr == ''
+
+
+def test_a_node_process_bounds_its_middleware_teardown_after_ctrl_c(tmp_path):
+    """Through ``run_node``: a node whose rclpy teardown never returns (a C call holding the
+    interpreter lock after rcl's, standing in for the Fast DDS participant deletion that did
+    not return once in CI) still exits 0 within the limit after a terminal Ctrl-C, saying
+    why."""
+    script = tmp_path / 'stuck_node.py'
+    script.write_text(
+        'import ctypes\n'
+        'import rclpy.node\n'
+        'from paramotion.node import ParamotionNode, run_node\n'
+        'rcl_teardown = rclpy.node.Node.destroy_node\n'
+        'def teardown_that_never_returns(node):\n'
+        '    rcl_teardown(node)\n'
+        '    while True:  # a later signal ends a C sleep early: sleep again\n'
+        '        ctypes.PyDLL(None).sleep(60)\n'
+        'rclpy.node.Node.destroy_node = teardown_that_never_returns\n'
+        'class StuckTeardownNode(ParamotionNode):\n'
+        '    USE_SIM_TIME_DEFAULT = False\n'
+        '    def __init__(self):\n'
+        "        super().__init__('stuck_teardown', parameter_overrides=[])\n"
+        '        self.timer = self.create_timer(0.05, self.spinning)\n'
+        '    def spinning(self):\n'
+        "        print('spinning', flush=True)\n"
+        '        self.timer.cancel()\n'
+        'run_node(StuckTeardownNode)\n')
+    log = tmp_path / 'stuck.log'
+    with open(log, 'w') as out:
+        proc = subprocess.Popen([sys.executable, str(script)], stdout=out,
+                                stderr=subprocess.STDOUT, start_new_session=True)
+        try:
+            assert wait_until(lambda: proc.poll() is not None or 'spinning' in
+                              log.read_text(), 60.0), log.read_text()
+            started = time.monotonic()
+            send(proc, (INT, INT))
+            proc.wait(30)
+            took = time.monotonic() - started
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+    text = log.read_text()
+    assert_clean(proc.returncode, text)
+    assert 'stuck_teardown: the middleware teardown' in text, text
+    assert took < s.HANG_REPORT_S, (took, text)
