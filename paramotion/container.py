@@ -21,6 +21,13 @@ it can hold, by node name), each with
 components to the same executor (``PARAMOTION_EXECUTOR``), and the container destroys them
 when it is destroyed.
 
+**Messages among the container's nodes** (``in_process``, default true): spun on the
+``events`` executor in its own process, the container hands a message one of its nodes
+publishes for another over in process (:class:`paramotion.intra_process.ContainerDelivery`),
+as rclcpp's intra-process communication does: the reader's callback gets a copy from the
+executor's queue, the middleware carries the message only to readers outside the container,
+and the copy it brings the container's reader is dropped unread.
+
 **Sim time in a container** (``sim_timers``, default ``container``): spun in its own process
 (:meth:`ComponentContainer.start_clock`, called by ``spin_node``), the container subscribes to
 ``/clock`` once for all its nodes (:class:`ContainerClock`): each ``/clock`` message sets the
@@ -44,6 +51,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rosgraph_msgs.msg import Clock as ClockMsg
 
 from paramotion.clock import take_time_source
+from paramotion.intra_process import ContainerDelivery
 from paramotion.node import Param, ParamotionNode, overrides_from_dict
 
 _NAME_RULES = ('__node', '__name', '__ns')
@@ -67,7 +75,11 @@ def component_params(components: dict[str, type[ParamotionNode]]) -> tuple[Param
                  "container process of its own: 'container' (one /clock subscription sets "
                  "every node's time and fires the timers it made due, in node order) or "
                  "'executor' (each node's own /clock subscription, the executor's timers).",
-                 choices=SIM_TIMERS, read_only=True)]
+                 choices=SIM_TIMERS, read_only=True),
+           Param('in_process', True, 'In a process of its own on the events executor: hand '
+                 "messages among the container's nodes over in process (the middleware still "
+                 'carries them to readers outside; paramotion.intra_process); false: every '
+                 'message through the middleware.', read_only=True)]
     for name, cls in components.items():
         for spec in cls.PARAMS:
             out.append(Param(f'{name}.{spec.name}', spec.default,
@@ -121,6 +133,7 @@ class ComponentContainer(ParamotionNode):
         type_service = self.get_parameter('start_type_description_service').value
         self.components = []
         self.sim_clock = None
+        self.delivery = None
         try:
             for name, cls in self.COMPONENTS.items():
                 if name not in self.params.components:
@@ -147,8 +160,20 @@ class ComponentContainer(ParamotionNode):
             self.sim_clock = ContainerClock(self, [self, *self.components])
         return self.sim_clock
 
+    def start_delivery(self, executor: Any, kind: str) -> ContainerDelivery | None:
+        """In a process of its own (``spin_node`` calls this with its executor): with
+        ``in_process`` on and the ``events`` executor, hand the messages among the container's
+        nodes over in process (:class:`paramotion.intra_process.ContainerDelivery`)."""
+        if self.params.in_process and kind == 'events' and self.delivery is None:
+            self.delivery = ContainerDelivery(executor, [self, *self.components])
+            self.get_logger().info('in-process delivery: ' +
+                                   (', '.join(self.delivery.topics) or 'no topic'))
+        return self.delivery
+
     def destroy_node(self) -> None:
         """Destroy the components (last started first), then the container."""
+        if self.delivery is not None:
+            self.delivery.close()
         while self.components:
             self.components.pop().destroy_node()
         return super().destroy_node()

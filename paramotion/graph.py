@@ -125,6 +125,8 @@ def spin_node(node: Node, kind: str | None = None,
     executor = make_executor('single_threaded' if kind == 'waitset' else kind, node.context)
     for each in nodes:
         executor.add_node(each)
+    if hasattr(node, 'start_delivery'):
+        node.start_delivery(executor, kind)   # a container's messages among its own nodes
     try:
         if kind == 'waitset':
             LockstepDrain(executor, node.context).spin(stop)
@@ -769,14 +771,16 @@ def _in_process_topic(pubs: list, subs: list) -> bool:
                 pub.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL or \
                 pub.get_subscription_count() != len(subs):
             return False
-    for sub in subs:
-        if sub.raw or sub.msg_type is not msg_type or \
-                sub._callback_type is not Subscription.CallbackType.MessageOnly or \
-                sub.qos_profile.history not in (HistoryPolicy.KEEP_LAST,
-                                                HistoryPolicy.KEEP_ALL) or \
-                sub.get_publisher_count() != len(pubs):
-            return False
-    return True
+    return all(plain_reader(sub, msg_type) and sub.get_publisher_count() == len(pubs)
+               for sub in subs)
+
+
+def plain_reader(sub: Subscription, msg_type: type) -> bool:
+    """True when ``sub`` reads ``msg_type`` messages as objects, without the message info, and
+    keeps a history: what an in-process hand-over gives it."""
+    return not sub.raw and sub.msg_type is msg_type and \
+        sub._callback_type is Subscription.CallbackType.MessageOnly and \
+        sub.qos_profile.history in (HistoryPolicy.KEEP_LAST, HistoryPolicy.KEEP_ALL)
 
 
 def _depth(sub: Subscription) -> int:

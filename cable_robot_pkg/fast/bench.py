@@ -329,6 +329,10 @@ PROCESS_CONFIGS = [
      {'publish_period': 0.01}),
     ('launch defaults, recorder on the evaluated topics only (record_topics:=[7 topics])',
      'events', {'record_topics': EVALUATED_TOPICS}),
+    ('launch defaults without in-process delivery in the container (in_process:=false)',
+     'events', {'in_process': False}),
+    ('recorder on the evaluated topics only, without in-process delivery (in_process:=false)',
+     'events', {'record_topics': EVALUATED_TOPICS, 'in_process': False}),
 ]
 
 

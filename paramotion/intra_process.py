@@ -1,0 +1,158 @@
+"""Messages among a component container's own nodes, handed over in process.
+
+rclcpp's component container with intra-process communication hands a message published by
+one of its nodes to its other nodes' subscriptions as an object; the middleware carries it
+only to readers elsewhere. rclpy has no such path: a container's node publishes for its
+neighbour through the middleware, which serialises the message and, on the reader's side,
+converts it back into Python objects field by field (a ``PoseStamped`` costs about 80 us of
+CPU to take, a copy 3 us). :class:`ContainerDelivery` is that path for a container spun on
+rclpy's ``EventsExecutor`` in its own process (:func:`paramotion.graph.spin_node`); the
+lock-step :class:`paramotion.graph.Graph` has its own (:class:`paramotion.graph.
+InProcessDelivery`), whose message copy (:func:`paramotion.graph.copy_message`: the values and
+Python types the middleware delivers) this one uses.
+
+For a topic that the container's nodes publish and read (every container reader of it takes
+messages as objects, without the message info, keeping a history; no transient-local
+publisher), each message takes one of two paths, chosen by its publisher as it publishes:
+
+- **in process**, while the middleware would carry it to the container's own readers only
+  (``get_subscription_count`` counts no reader outside: no recorder, no other process on the
+  topic): a copy goes into each reader's queue (kept at the reader's QoS depth, the oldest
+  dropped as ``KEEP_LAST`` history drops it) and a task on the executor runs the reader's
+  callback with the oldest message. The callback runs from the executor's queue after the
+  publishing callback returns, where the middleware's new-message event would have queued it
+  (the middleware's in-process delivery queues that event inside ``publish``). The message is
+  never serialised.
+- **through the middleware**, while a reader outside the container listens (the simulator, a
+  recorder, ``ros2 topic echo``): published as usual, and the container's readers take it
+  from the middleware as before.
+
+Either way each reader gets each message once: the middleware never brings a container
+reader a copy of a message that it also got in process. The readers keep their middleware
+subscriptions (``ros2 topic info`` lists them, QoS is matched as before) and take what the
+middleware brings (the other path, and publishers outside the container) as bytes, which
+:func:`_from_bytes` turns into the message, so an outside publisher on the topic still
+reaches them. This is the lock-step Graph's rule (a topic in process while every reader is
+in the graph) decided message by message; rclcpp's intra-process communication also hands
+the message over in process when outside readers listen, and then drops the middleware's
+copy by the publisher's GID, which rclpy does not expose.
+
+A topic stays on the middleware when a container reader of it is raw or wants the message
+info, or its publishers are transient-local. Entities created after the start go over the
+middleware (a new container reader counts as an outside reader).
+"""
+from __future__ import annotations
+
+from collections import defaultdict, deque
+from collections.abc import Callable, Sequence
+from typing import Any
+
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy
+from rclpy.serialization import deserialize_message
+
+from paramotion.graph import _depth, _put, copy_message, plain_reader
+
+
+class ContainerDelivery:
+    """In-process delivery among ``nodes`` (a container and its components), spun by
+    ``executor`` (rclpy's ``EventsExecutor``, whose ``create_task`` queues a callable behind the
+    events already queued). ``delivered`` counts the messages handed over in process,
+    ``relayed`` those a routed reader took from the middleware; ``topics`` lists the routed
+    topics."""
+
+    def __init__(self, executor: Any, nodes: Sequence[Node]) -> None:
+        self.executor = executor
+        self.nodes = list(nodes)
+        self.delivered = 0
+        self.relayed = 0
+        self._routes = {}        # topic -> (publishers, readers)
+        self._retired = []       # callbacks replaced while the executor may still hold them
+        self.route()
+
+    @property
+    def topics(self) -> list[str]:
+        """The topics routed here, sorted."""
+        return sorted(self._routes)
+
+    def route(self) -> None:
+        """Route every topic that qualifies (module docstring)."""
+        topics = defaultdict(lambda: ([], []))
+        for node in self.nodes:
+            for pub in node.publishers:
+                topics[pub.topic_name][0].append(pub)
+            for sub in node.subscriptions:
+                topics[sub.topic_name][1].append(sub)
+        for topic, (pubs, subs) in topics.items():
+            if topic in self._routes or not pubs or not subs:
+                continue
+            msg_type = pubs[0].msg_type
+            if any(p.msg_type is not msg_type or
+                   p.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL
+                   for p in pubs) or not all(plain_reader(s, msg_type) for s in subs):
+                continue
+            readers = [(sub, deque(), _depth(sub), sub.callback) for sub in subs]
+            for sub, *_ in readers:
+                sub.raw = True
+                sub._callback = self._relay(sub.callback, msg_type)
+            for pub in pubs:
+                pub.publish = self._publisher(pub, readers)
+            self._routes[topic] = (pubs, readers)
+
+    def _publisher(self, pub: Any, readers: list) -> Callable[[Any], None]:
+        msg_type = pub.msg_type
+        middleware = type(pub).publish.__get__(pub)
+        count = pub.handle.get_subscription_count
+        inside = len(readers)
+        create_task = self.executor.create_task
+        run = self._run
+
+        def publish(msg: Any) -> None:
+            if count() > inside:         # a reader outside the container listens
+                middleware(msg)
+                return
+            if type(msg) is not msg_type and not isinstance(msg, msg_type):
+                if not isinstance(msg, bytes):
+                    middleware(msg)      # the middleware's TypeError
+                    return
+                msg = deserialize_message(msg, msg_type)
+            for _, queue, depth, callback in readers:
+                _put(queue, copy_message(msg), depth)
+                create_task(run, queue, callback)
+        return publish
+
+    def _run(self, queue: deque, callback: Callable[[Any], Any]) -> None:
+        # A queue that dropped its oldest message has more tasks than messages.
+        if queue:
+            self.delivered += 1
+            callback(queue.popleft())
+
+    def _relay(self, callback: Callable[[Any], Any], msg_type: type) -> Callable[[Any], Any]:
+        convert = _from_bytes(callback, msg_type)
+
+        def relay(msg: Any) -> Any:
+            self.relayed += 1
+            return convert(msg)
+        return relay
+
+    def close(self) -> None:
+        """Give every topic back to the middleware (call with the executor no longer
+        spinning; messages already queued still run)."""
+        for pubs, readers in self._routes.values():
+            for pub in pubs:
+                pub.__dict__.pop('publish', None)
+            for sub, _, _, callback in readers:
+                self._retired.append(sub._callback)
+                sub.raw = False
+                sub._callback = callback
+        self._routes = {}
+
+
+def _from_bytes(callback: Callable[[Any], Any], msg_type: type) -> Callable[[Any], Any]:
+    """``callback`` for messages, also given the bytes of one taken raw."""
+    def call(msg: Any) -> Any:
+        return callback(deserialize_message(msg, msg_type) if isinstance(msg, bytes) else msg)
+    return call
+
+
+__all__ = ['ContainerDelivery']
