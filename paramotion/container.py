@@ -23,10 +23,10 @@ when it is destroyed.
 
 **Messages among the container's nodes** (``in_process``, default true): spun on the
 ``events`` executor in its own process, the container hands a message one of its nodes
-publishes for another over in process (:class:`paramotion.intra_process.ContainerDelivery`),
-as rclcpp's intra-process communication does: the reader's callback gets a copy from the
-executor's queue, the middleware carries the message only to readers outside the container,
-and the copy it brings the container's reader is dropped unread.
+publishes for another over in process while no reader outside the container listens on the
+topic (:class:`paramotion.intra_process.ContainerDelivery`): the reader's callback gets a copy
+from the executor's queue and the message is never serialised; while a reader outside
+listens, the message goes through the middleware to every reader, once each.
 
 **Sim time in a container** (``sim_timers``, default ``container``): spun in its own process
 (:meth:`ComponentContainer.start_clock`, called by ``spin_node``), the container subscribes to
@@ -77,9 +77,9 @@ def component_params(components: dict[str, type[ParamotionNode]]) -> tuple[Param
                  "'executor' (each node's own /clock subscription, the executor's timers).",
                  choices=SIM_TIMERS, read_only=True),
            Param('in_process', True, 'In a process of its own on the events executor: hand '
-                 "messages among the container's nodes over in process (the middleware still "
-                 'carries them to readers outside; paramotion.intra_process); false: every '
-                 'message through the middleware.', read_only=True)]
+                 "messages among the container's nodes over in process while no reader "
+                 'outside the container listens on the topic (paramotion.intra_process); '
+                 'false: every message through the middleware.', read_only=True)]
     for name, cls in components.items():
         for spec in cls.PARAMS:
             out.append(Param(f'{name}.{spec.name}', spec.default,

@@ -28,11 +28,10 @@ publisher), each message takes one of two paths, chosen by its publisher as it p
   from the middleware as before.
 
 Either way each reader gets each message once: the middleware never brings a container
-reader a copy of a message that it also got in process. The readers keep their middleware
-subscriptions (``ros2 topic info`` lists them, QoS is matched as before) and take what the
-middleware brings (the other path, and publishers outside the container) as bytes, which
-:func:`_from_bytes` turns into the message, so an outside publisher on the topic still
-reaches them. This is the lock-step Graph's rule (a topic in process while every reader is
+reader a copy of a message that it also got in process. The readers are left as they are:
+their middleware subscriptions (``ros2 topic info`` lists them, QoS is matched as before)
+take what the middleware brings them (the second path, and any publisher outside the
+container). This is the lock-step Graph's rule (a topic in process while every reader is
 in the graph) decided message by message; rclcpp's intra-process communication also hands
 the message over in process when outside readers listen, and then drops the middleware's
 copy by the publisher's GID, which rclpy does not expose.
@@ -57,17 +56,14 @@ from paramotion.graph import _depth, _put, copy_message, plain_reader
 class ContainerDelivery:
     """In-process delivery among ``nodes`` (a container and its components), spun by
     ``executor`` (rclpy's ``EventsExecutor``, whose ``create_task`` queues a callable behind the
-    events already queued). ``delivered`` counts the messages handed over in process,
-    ``relayed`` those a routed reader took from the middleware; ``topics`` lists the routed
-    topics."""
+    events already queued). ``delivered`` counts the messages handed over in process;
+    ``topics`` lists the routed topics."""
 
     def __init__(self, executor: Any, nodes: Sequence[Node]) -> None:
         self.executor = executor
         self.nodes = list(nodes)
         self.delivered = 0
-        self.relayed = 0
-        self._routes = {}        # topic -> (publishers, readers)
-        self._retired = []       # callbacks replaced while the executor may still hold them
+        self._routes = {}        # topic -> publishers
         self.route()
 
     @property
@@ -91,13 +87,10 @@ class ContainerDelivery:
                    p.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL
                    for p in pubs) or not all(plain_reader(s, msg_type) for s in subs):
                 continue
-            readers = [(sub, deque(), _depth(sub), sub.callback) for sub in subs]
-            for sub, *_ in readers:
-                sub.raw = True
-                sub._callback = self._relay(sub.callback, msg_type)
+            readers = [(deque(), _depth(sub), sub.callback) for sub in subs]
             for pub in pubs:
                 pub.publish = self._publisher(pub, readers)
-            self._routes[topic] = (pubs, readers)
+            self._routes[topic] = pubs
 
     def _publisher(self, pub: Any, readers: list) -> Callable[[Any], None]:
         msg_type = pub.msg_type
@@ -116,7 +109,7 @@ class ContainerDelivery:
                     middleware(msg)      # the middleware's TypeError
                     return
                 msg = deserialize_message(msg, msg_type)
-            for _, queue, depth, callback in readers:
+            for queue, depth, callback in readers:
                 _put(queue, copy_message(msg), depth)
                 create_task(run, queue, callback)
         return publish
@@ -127,32 +120,12 @@ class ContainerDelivery:
             self.delivered += 1
             callback(queue.popleft())
 
-    def _relay(self, callback: Callable[[Any], Any], msg_type: type) -> Callable[[Any], Any]:
-        convert = _from_bytes(callback, msg_type)
-
-        def relay(msg: Any) -> Any:
-            self.relayed += 1
-            return convert(msg)
-        return relay
-
     def close(self) -> None:
-        """Give every topic back to the middleware (call with the executor no longer
-        spinning; messages already queued still run)."""
-        for pubs, readers in self._routes.values():
+        """Give every topic back to the middleware (messages already queued still run)."""
+        for pubs in self._routes.values():
             for pub in pubs:
                 pub.__dict__.pop('publish', None)
-            for sub, _, _, callback in readers:
-                self._retired.append(sub._callback)
-                sub.raw = False
-                sub._callback = callback
         self._routes = {}
-
-
-def _from_bytes(callback: Callable[[Any], Any], msg_type: type) -> Callable[[Any], Any]:
-    """``callback`` for messages, also given the bytes of one taken raw."""
-    def call(msg: Any) -> Any:
-        return callback(deserialize_message(msg, msg_type) if isinstance(msg, bytes) else msg)
-    return call
 
 
 __all__ = ['ContainerDelivery']

@@ -289,6 +289,95 @@ def bench_processes(wall_s: float = 40.0, real_time_factor: float = 1.0,
     }
 
 
+def delivery_cost(messages: int = 3000, repeat: int = 3) -> dict[str, float]:
+    """CPU microseconds per message handed from one component to another in one container
+    process on the events executor (as ``spin_node`` spins it), a ``PoseStamped`` like the
+    tracker's frames, each run until the reader's callback has it: with in-process delivery
+    (``in_process``) and through the middleware (``middleware``), without a reader outside the
+    container and with one (``*_outside_reader``: another context in this process, whose
+    middleware threads this process's CPU time counts too). Median of ``repeat`` runs each,
+    alternated."""
+    import rclpy
+    from geometry_msgs.msg import PoseStamped
+    from rclpy.parameter import Parameter
+
+    from paramotion.container import ComponentContainer, component_params
+    from paramotion.graph import make_executor, private_domain_id
+    from paramotion.node import ParamotionNode
+    from paramotion.qos import SENSOR_QOS
+
+    class Talker(ParamotionNode):
+        USE_SIM_TIME_DEFAULT = False
+
+        def __init__(self, node_name='talker', **kwargs):
+            super().__init__(node_name, **kwargs)
+            self.pub = self.create_publisher(PoseStamped, '/delivery_cost', SENSOR_QOS)
+
+    class Listener(ParamotionNode):
+        USE_SIM_TIME_DEFAULT = False
+
+        def __init__(self, node_name='listener', **kwargs):
+            super().__init__(node_name, **kwargs)
+            self.count = 0
+            self.create_subscription(PoseStamped, '/delivery_cost', self.on_msg, SENSOR_QOS)
+
+        def on_msg(self, msg):
+            self.count += 1
+
+    class Box(ComponentContainer):
+        COMPONENTS = {'talker': Talker, 'listener': Listener}
+        PARAMS = component_params(COMPONENTS)
+        USE_SIM_TIME_DEFAULT = False
+
+        def __init__(self, **kwargs):
+            super().__init__('delivery_cost', **kwargs)
+
+    def run(in_process: bool, outside: bool) -> float:
+        domain = private_domain_id()
+        inside_ctx, outside_ctx = rclpy.Context(), rclpy.Context()
+        rclpy.init(context=inside_ctx, domain_id=domain)
+        rclpy.init(context=outside_ctx, domain_id=domain)
+        peer = rclpy.create_node('delivery_cost_peer', context=outside_ctx)
+        box = Box(context=inside_ctx,
+                  parameter_overrides=[Parameter('in_process', value=in_process)])
+        talker, listener = box.components
+        executor = make_executor('events', inside_ctx)
+        try:
+            if outside:
+                peer.create_subscription(PoseStamped, '/delivery_cost', lambda m: None,
+                                         SENSOR_QOS)
+                end = time.monotonic() + 10.0
+                while talker.pub.get_subscription_count() < 2 and time.monotonic() < end:
+                    time.sleep(0.05)
+            for node in (box, talker, listener):
+                executor.add_node(node)
+            box.start_delivery(executor, 'events')
+            executor.spin_once(timeout_sec=0.1)
+            msg = PoseStamped()
+            msg.pose.position.x = 1.5
+            c0 = time.process_time()
+            for k in range(messages):
+                talker.pub.publish(msg)
+                while listener.count <= k:
+                    executor.spin_once(timeout_sec=0.5)
+            return (time.process_time() - c0) / messages * 1e6
+        finally:
+            executor.shutdown(timeout_sec=1.0)
+            box.destroy_node()
+            peer.destroy_node()
+            rclpy.try_shutdown(context=inside_ctx)
+            rclpy.try_shutdown(context=outside_ctx)
+
+    runs = {}
+    for _ in range(int(repeat)):
+        for outside in (False, True):
+            for in_process in (True, False):
+                key = ('in_process' if in_process else 'middleware') + \
+                    ('_outside_reader' if outside else '')
+                runs.setdefault(key, []).append(run(in_process, outside))
+    return {key: sorted(v)[len(v) // 2] for key, v in runs.items()}
+
+
 def bench_fast(quick: bool, options: dict) -> dict[str, float]:
     """``paramotion bench``'s FAST figures: 1 sim second once (quick) or 5 s, median of 3."""
     return bench_one_process(duration=1.0 if quick else 5.0, repeat=1 if quick else 3)
@@ -394,5 +483,6 @@ BENCHES = {'fast': (bench_fast, {
     'fast_real_time_factor_cpu': 'FAST sim s / CPU s (one process)'})}
 
 __all__ = ['BENCHES', 'EVALUATED_TOPICS', 'LOCKSTEP', 'PHYSICS_SETTINGS', 'PROCESS_CONFIGS',
-           'bench_fast', 'bench_one_process', 'bench_processes', 'physics_settings',
+           'bench_fast', 'bench_one_process', 'bench_processes', 'delivery_cost',
+           'physics_settings',
            'process_row', 'report_lines']
