@@ -61,7 +61,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``paramotion`` console script."""
-    parser = build_parser()
+    try:
+        parser = build_parser()   # imports every subcommand (SciPy, PyBullet): seconds
+    except KeyboardInterrupt:
+        print('paramotion: interrupted', file=sys.stderr)
+        return 130
     args = parser.parse_args(argv)
     try:
         code = args.func(args)

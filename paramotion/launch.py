@@ -62,31 +62,10 @@ def format_param(value: object) -> str:
 
 
 def console_scripts() -> dict[str, str]:
-    """paramotion's node executables: name -> 'module:function' (setup.py console scripts).
-
-    Read from the installed package metadata; in a source tree whose setup.py lists more than
-    the installed metadata (a node added since the last ``pip install -e .``), setup.py's
-    ``NODES`` list is read too.
-    """
-    scripts = {}
-    try:
-        from importlib.metadata import distribution
-        for ep in distribution(PACKAGE).entry_points:
-            if ep.group == 'console_scripts' and ep.name != PACKAGE:
-                scripts[ep.name] = ep.value
-    except Exception:  # not installed (plain source checkout on sys.path)
-        pass
-    setup_py = Path(__file__).resolve().parents[1] / 'setup.py'
-    if setup_py.is_file():
-        import ast
-        tree = ast.parse(setup_py.read_text())
-        for node in ast.walk(tree):
-            if isinstance(node, ast.Assign) and any(
-                    getattr(t, 'id', None) == 'NODES' for t in node.targets):
-                for item in ast.literal_eval(node.value):
-                    name, _, target = (s.strip() for s in item.partition('='))
-                    scripts.setdefault(name, target)
-    return scripts
+    """paramotion's node executables: name -> 'module:main' (:data:`paramotion.start.NODES`,
+    which setup.py registers as console scripts)."""
+    from paramotion.start import NODES
+    return {name: f'{module}:main' for name, module in NODES.items()}
 
 
 def node_class(executable: str) -> type[Node]:

@@ -141,14 +141,19 @@ def test_each_robot_has_one_room():
 
 
 def test_every_console_script_resolves():
-    """Each node executable named in setup.py points at an importable module with main()."""
+    """Each node executable (``paramotion.start.NODES``, registered by setup.py as
+    ``paramotion.start:<name>``) names an importable module with main() and an entry point."""
     import importlib
-    import re
-    text = (REPO / 'setup.py').read_text()
-    entries = re.findall(r"'(\w+) = ([\w.]+):main'", text)
-    assert len(entries) >= 15
-    for name, module in entries:
+
+    import paramotion.start as start
+    assert len(start.NODES) >= 15
+    assert "f'{name} = paramotion.start:{name}' for name in NODES" in \
+        (REPO / 'setup.py').read_text()
+    for name, module in start.NODES.items():
         assert callable(getattr(importlib.import_module(module), 'main', None)), name
+        assert getattr(start, name).__name__ == name
+    with pytest.raises(AttributeError, match='no node executable'):
+        start.not_a_node  # noqa: B018
 
 
 # Issue 33: packages whose algorithm modules carry type hints on every public function, method

@@ -8,9 +8,10 @@ import time
 
 import pytest
 import rclpy
-from launch_helpers import REPO, colcon_workspace, in_workspace
+from launch_helpers import colcon_workspace, in_workspace
 
 from paramotion.launch import wait_until
+from paramotion.start import NODES
 
 pytestmark = pytest.mark.slow
 
@@ -27,9 +28,7 @@ def _run_in_ws(ws, command, **kwargs):
 
 def test_executables_installed_where_ros2_run_looks(workspace):
     lib = workspace / 'install' / 'paramotion' / 'lib' / 'paramotion'
-    setup_py = (REPO / 'setup.py').read_text()
-    names = [line.split('=')[0].strip().strip("'") for line in setup_py.splitlines()
-             if line.strip().startswith("'") and ' = ' in line and ':main' in line]
+    names = list(NODES)
     assert 'smoke_sim' in names and 'bag_recorder' in names
     for name in names:
         assert (lib / name).is_file() and os.access(lib / name, os.X_OK), name

@@ -338,3 +338,29 @@ def test_a_node_process_bounds_its_middleware_teardown_after_ctrl_c(tmp_path):
     assert_clean(proc.returncode, text)
     assert 'stuck_teardown: the middleware teardown' in text, text
     assert took < s.HANG_REPORT_S, (took, text)
+
+
+@pytest.mark.parametrize('sig', [INT, TERM], ids=['ctrl-c', 'sigterm'])
+def test_a_signal_while_a_node_imports_its_module_ends_it_quietly(tmp_path, sig):
+    """A node executable (``paramotion.start``) stopped while it still imports its module (here
+    one whose import takes 30 s) exits 0 with nothing printed, not with an import traceback."""
+    (tmp_path / 'slow_node.py').write_text(
+        'import time\n'
+        'print("importing", flush=True)\n'
+        'time.sleep(30)\n'
+        'def main():\n'
+        '    print("main ran")\n')
+    proc = subprocess.Popen(
+        [sys.executable, '-c', 'import paramotion.start as s; s.load("slow_node")()'],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        env={**os.environ, 'PYTHONPATH': f'{tmp_path}{os.pathsep}' + os.environ.get(
+            'PYTHONPATH', '')})
+    try:
+        assert proc.stdout.readline() == 'importing\n'
+        os.kill(proc.pid, sig)
+        out, err = proc.communicate(timeout=20)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 0 and out == '' and err == '', (proc.returncode, out, err)
