@@ -92,6 +92,8 @@ class PaperConfig:
     #                                 1's pseudocode order, the narrow node traced whole)
     circuit_sweeps: bool = False    # ours: no laps in a cell its circuit has swept (loses
     #                                 coverage on held-out worlds: not safe)
+    cusp_detour: bool = False       # ours: a narrow node whose cusp the boundary circuit
+    #                                 senses is traced at once; the circuit resumes after
 
     def detector_range(self) -> float:
         """Range of the detector used for coverage: delta."""

@@ -82,6 +82,24 @@ def test_a_branch_along_a_traced_gvd_edge_ends_traced_one_across_it_stays_open()
     assert p.find_uncovered_node() is None and n.covered
 
 
+def test_a_branch_whose_traced_edge_ends_at_a_known_meet_point_ends_traced():
+    """Each GVD edge is traced once, however short: a branch whose way out lies on a traced
+    GVD edge up to a known meet point, where that edge turns away, ends 'traced'; without
+    the meet point the same branch stays open (2.4 m out is not on the traced edge)."""
+    for meet, end in (((3.3, 1.5, 0), 'traced'), (None, None)):
+        p = _planner()
+        p.on_odometry(0.0, 0.0, 0.0, 0.0)
+        _traced(p, [(x, 1.5) for x in np.arange(1.6, 3.3, 0.2)], (1.0, 0.0))
+        _traced(p, [(3.3, y) for y in np.arange(1.7, 5.0, 0.2)], (0.0, 1.0))
+        n = Node(0, 'narrow', (1.6, 1.5))
+        p.nodes.append(n)
+        if meet:
+            n.meets.append(meet)
+        b = Branch((1.8, 1.5), (1.0, 0.0))
+        n.branches.append(b)
+        assert p._open_branches(n) == ([] if meet else [b]) and b.end == end
+
+
 def test_trace_joining_a_traced_edge_along_it_is_recognised_not_one_crossing_it():
     """The trace of a branch ends 'traced' where it runs along a GVD edge traced before it
     began (same direction or against it), not where it crosses one."""
@@ -247,6 +265,26 @@ def test_a_circuit_runs_on_past_its_start_in_the_handover_mode(handover):
     assert circ['done'] and circ['back_at'] is not None
     run_on = circ['length'] - circ['back_at']
     assert (run_on >= 0.5) if handover else (run_on < 0.1)
+
+
+@pytest.mark.parametrize('detour', [False, True])
+def test_cusp_detour_traces_a_corner_before_the_circuit_ends_and_resumes_it(detour):
+    """Switch ``cusp_detour`` (ours): in a room (one vast cell, a narrow node at each corner)
+    the paper's order covers the vast node first and then each corner; with the switch the
+    first corner's GVD edge is traced as soon as the circuit senses its cusp, the circuit is
+    resumed where it was left, and the room is covered all the same."""
+    room = world_from_dict({'name': 'room', 'boundary': [[0, 0], [9, 0], [9, 7], [0, 7]],
+                            'obstacles': [], 'start': [4.5, 3.5]})
+    r = run_kinematic(room, PaperConfig(cusp_detour=detour), max_time=600)
+    p = r['planner']
+    assert r['state'] == 'done' and r['covered_fraction'] >= 0.99
+    kinds = [e[1] for e in p.events]
+    first_end = kinds.index('branch_end')
+    vast_done = next(i for i, e in enumerate(p.events)
+                     if e[1] == 'node_covered' and e[4].startswith('vast'))
+    assert (first_end < vast_done) == detour
+    assert sum(n.kind == 'narrow' for n in p.nodes) == 4
+    assert all(n.covered for n in p.nodes)
 
 
 @pytest.mark.parametrize('circuit_y, split', [(2.0, False), (2.3, True), (4.5, True)])

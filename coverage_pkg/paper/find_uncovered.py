@@ -107,8 +107,15 @@ class FindUncoveredNode:
         cands = [n for n in self.nodes if not n.covered]
         if not cands:
             return None
-        cost = self._path_costs([n.anchor for n in cands])
+        cost = self._path_costs([self._resume_point(n) for n in cands])
         return min(zip(cost, [n.id for n in cands], cands))[2]
+
+    @staticmethod
+    def _resume_point(n):
+        """Where covering ``n`` goes on: x(n), or where its boundary circuit was suspended
+        (switch ``cusp_detour``)."""
+        held = next((c['suspended'][0] for c in n.circuits if 'suspended' in c), None)
+        return n.anchor if held is None else held
 
     def _path_costs(self, points):
         """Length of the way to each of ``points`` along the traced paths (the roadmap's

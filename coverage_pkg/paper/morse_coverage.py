@@ -318,8 +318,9 @@ class MorseDecompCoverage:
         on it (Fig. 10). Ends back where it began."""
         tk = self.task
         if tk.get('circuit') is not circ:
-            self.task = tk = {'circuit': circ}
-            self._go_to(circ['start'], then='boundary')
+            held = circ.pop('suspended', None)       # cusp_detour: resume where it was left
+            self.task = tk = dict(held[1]) if held else {'circuit': circ}
+            self._go_to(held[0] if held else circ['start'], then='boundary')
             return None
         if self.mode == 'transit':
             return None

@@ -48,6 +48,23 @@ class CreateNode:
             self._end_branch('cusp')
             if self.cfg.handover:
                 self._hand_over(new)
+        elif new.kind == 'narrow' and self.cfg.cusp_detour and self.mode == 'boundary' and \
+                'origin' in self.task and self.task.get('circuit') is not None:
+            self._detour(n, new)
+
+    def _detour(self, n, new):
+        """Switch ``cusp_detour`` (ours, not the paper's): the boundary circuit of vast
+        node ``n`` has sensed the cusp of narrow node ``new``; the circuit is suspended where
+        the robot stands and ``new`` is covered at once, so that the robot does not drive
+        round the circuit a second time to reach the cusps it passed. The circuit resumes
+        from the same place when FindUncoveredNode returns to ``n`` (Algorithm 1 and Fig. 13
+        finish the vast cell first, then come back to the cusp)."""
+        circ = self.task['circuit']
+        circ['suspended'] = (tuple(self.pose[:2]), dict(self.task))
+        self.decisions.append((round(float(self.t_sweep or 0.0), 3), new.id, new.kind,
+                               new.anchor[0], new.anchor[1]))
+        self.current = new.id
+        self._begin_node(new)
 
     def _hand_over(self, new):
         """Fig. 13's order (switch ``handover``): the vast node beyond a cusp sensed while

@@ -100,8 +100,18 @@ class TraceGVD:
         return out
 
     def _edge_traced(self, start, heading):
-        return all(self._near_trace((start[0] + s * heading[0], start[1] + s * heading[1]),
-                                    0.4) for s in (0.8, 1.6, 2.4))
+        """0.8, 1.6 and 2.4 m out along ``heading`` lie on a traced GVD edge; an edge that
+        ends sooner at a known meet point (within 0.5 m of the way out, beyond 0.5 m from
+        ``start``) is tested up to that meet point, at least at 0.8 m."""
+        meets = [m[:2] for k in self.nodes for m in k.meets
+                 if math.dist(m[:2], start) > 0.5]
+        for s in (0.8, 1.6, 2.4):
+            q = (start[0] + s * heading[0], start[1] + s * heading[1])
+            if not self._near_trace(q, 0.4):
+                return False
+            if any(math.dist(m, q) < 0.5 for m in meets):
+                return True
+        return True
 
     def _near_trace(self, q, within, before=None, along=None):
         """A point of a traced GVD edge lies within ``within`` of ``q`` (traced before sweep
