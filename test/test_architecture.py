@@ -50,7 +50,8 @@ def test_algorithm_modules_do_not_import_rclpy():
 # is an algorithm module (or plain tooling) and must not mention rclpy at all.
 ROS_SIDE = ('_node', '.scenario', '.cli', '.bench', '.sweep', '.demo', '.launch', '.launch_xml',
             '.graph', '.node', '.qos', '.clock', '.clock_watchdog', '.sim', '.msgtypes',
-            '.container', '.ros_messages', '.qos_yaml', '.reader', '.shutdown')
+            '.container', '.intra_process', '.ros_messages', '.qos_yaml', '.reader',
+            '.shutdown')
 
 
 @functools.cache
