@@ -50,6 +50,8 @@ class ClockSourceNode(ParamotionNode):
     """Base of nodes that own simulated time and publish ``/clock``."""
 
     USE_SIM_TIME_DEFAULT = False
+    #: Publishes ``/clock`` itself (:func:`paramotion.clock_watchdog.uses_sim_time`).
+    OWNS_CLOCK = True
     PARAMS = (
         Param('publish_period', 0.01, 'Simulated seconds advanced per step; /clock and state '
               'are published once per step.', min=1e-4, max=1.0, read_only=True),

@@ -96,9 +96,9 @@ class ClockWatchdog:
 
 
 def uses_sim_time(node: Node) -> bool:
-    """True if ``node`` runs on simulated time and does not own ``/clock`` itself."""
-    from paramotion.clock import ClockSourceNode
-    if isinstance(node, ClockSourceNode):
+    """True if ``node`` runs on simulated time and does not own ``/clock`` itself (a
+    :class:`paramotion.clock.ClockSourceNode`, marked ``OWNS_CLOCK``)."""
+    if getattr(node, 'OWNS_CLOCK', False):
         return False
     return bool(node.get_parameter('use_sim_time').value)
 

@@ -8,9 +8,9 @@ converts it back into Python objects field by field (a ``PoseStamped`` from one 
 another: about 72 us of CPU through the middleware, 18 us in process, measured by
 ``cable_robot_pkg.fast.bench.delivery_cost``). :class:`ContainerDelivery` is that path for a
 container spun on rclpy's ``EventsExecutor`` in its own process
-(:func:`paramotion.graph.spin_node`); the lock-step :class:`paramotion.graph.Graph` has its
-own (:class:`paramotion.graph.InProcessDelivery`), whose message copy
-(:func:`paramotion.graph.copy_message`: the values and Python types the middleware delivers)
+(:func:`paramotion.executors.spin_node`); the lock-step :class:`paramotion.graph.Graph` has its
+own (:class:`paramotion.executors.InProcessDelivery`), whose message copy
+(:func:`paramotion.executors.copy_message`: the values and Python types the middleware delivers)
 this one uses.
 
 For a topic that the container's nodes publish and read (every container reader of it takes
@@ -52,7 +52,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy
 from rclpy.serialization import deserialize_message
 
-from paramotion.graph import _depth, _put, copy_message, plain_reader
+from paramotion.executors import _depth, _put, copy_message, plain_reader
 
 
 class ContainerDelivery:

@@ -35,7 +35,9 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
 
+from paramotion.clock_watchdog import attach as attach_clock_watchdog
 from paramotion.errors import ParameterError, UserError
+from paramotion.executors import node_executor_kind, spin_node
 from paramotion.shutdown import (
     ShutdownSignals,
     ShutdownWaker,
@@ -258,7 +260,6 @@ def _run_node(node_cls: Callable[[], Node], args: Sequence[str] | None,
               signals: ShutdownSignals) -> None:
     node = watchdog = waker = None
     try:
-        from paramotion.graph import node_executor_kind, spin_node  # $PARAMOTION_EXECUTOR
         kind = node_executor_kind()
         # The events and waitset executors are spun in 0.1 s slices that stop once a signal
         # has arrived: rclpy's handler stays out (it would shut the context down under a
@@ -270,8 +271,7 @@ def _run_node(node_cls: Callable[[], Node], args: Sequence[str] | None,
             SignalHandlerOptions.NO if events else signals.rclpy_options()))
         node = node_cls()
         # A node on sim time in its own process warns once if its simulator stops.
-        from paramotion.clock_watchdog import attach
-        watchdog = attach(node)
+        watchdog = attach_clock_watchdog(node)
         waker = None if events else ShutdownWaker(node)
         signals.spinning()
         spin_node(node, kind, stop=lambda: signals.requested)

@@ -49,8 +49,8 @@ def test_algorithm_modules_do_not_import_rclpy():
 # and command-line front ends that build or drive graphs. Everything else in the four packages
 # is an algorithm module (or plain tooling) and must not mention rclpy at all.
 ROS_SIDE = ('_node', '.scenario', '.cli', '.bench', '.sweep', '.demo', '.launch', '.launch_xml',
-            '.graph', '.node', '.qos', '.clock', '.clock_watchdog', '.sim', '.msgtypes',
-            '.container', '.intra_process', '.ros_messages', '.qos_yaml', '.reader',
+            '.graph', '.executors', '.node', '.qos', '.clock', '.clock_watchdog', '.sim',
+            '.msgtypes', '.container', '.intra_process', '.ros_messages', '.qos_yaml', '.reader',
             '.shutdown')
 
 

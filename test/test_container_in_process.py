@@ -15,7 +15,8 @@ from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
 
 from paramotion.container import ComponentContainer, component_params
-from paramotion.graph import private_domain_id, spin_node
+from paramotion.executors import spin_node
+from paramotion.graph import private_domain_id
 from paramotion.node import ParamotionNode
 from paramotion.qos import STATE_QOS
 

@@ -140,7 +140,7 @@ def test_container_clock_fires_each_sim_time_timer_once_at_its_due_time(executor
     from rosgraph_msgs.msg import Clock
 
     from paramotion.clock import stamp_from_ns
-    from paramotion.graph import spin_node
+    from paramotion.executors import spin_node
     from paramotion.qos import CLOCK_QOS
 
     TICKS.clear()

@@ -1,4 +1,4 @@
-"""The lock-step Graph's in-process delivery (paramotion.graph.InProcessDelivery) changes what
+"""The lock-step Graph's in-process delivery (paramotion.executors.InProcessDelivery) changes what
 the FAST graph costs, not what its nodes receive: the same values and types, the same queue
 depths, and the middleware wherever a reader needs it."""
 import array
@@ -13,7 +13,8 @@ from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import Imu, JointState, LaserScan, Range
 from std_msgs.msg import Float64
 
-from paramotion.graph import Graph, copy_message, graph_defaults
+from paramotion.executors import copy_message
+from paramotion.graph import Graph, graph_defaults
 
 
 def _same(a, b, path='msg'):

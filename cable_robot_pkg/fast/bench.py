@@ -302,7 +302,8 @@ def delivery_cost(messages: int = 3000, repeat: int = 3) -> dict[str, float]:
     from rclpy.parameter import Parameter
 
     from paramotion.container import ComponentContainer, component_params
-    from paramotion.graph import make_executor, private_domain_id
+    from paramotion.executors import make_executor
+    from paramotion.graph import private_domain_id
     from paramotion.node import ParamotionNode
     from paramotion.qos import SENSOR_QOS
 
