@@ -17,6 +17,7 @@ missing executable or a parameter the node does not declare is refused with one 
 from __future__ import annotations
 
 import argparse
+import faulthandler
 import importlib
 import inspect
 import os
@@ -416,6 +417,7 @@ def run(desc: LaunchDescription, log_dir: str | os.PathLike[str] | None = None,
         stop.set()
     for sig in (signal.SIGINT, signal.SIGTERM):
         previous[sig] = signal.signal(sig, on_signal)
+    faulthandler.register(signal.SIGUSR1, all_threads=True)   # kill -USR1: where it is
     try:
         launcher.start()
         while not stop.wait(period):

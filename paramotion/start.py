@@ -54,26 +54,40 @@ class _StopDuringImport(BaseException):
     """SIGTERM while the node's module is imported (SIGINT raises KeyboardInterrupt)."""
 
 
-def _raise_stop(signum, frame):
-    raise _StopDuringImport
+_received: list[int] = []   # signals that arrived while the node's module was imported
+
+
+def _stop_import(signum, frame):
+    _received.append(signum)
+    raise KeyboardInterrupt if signum == signal.SIGINT else _StopDuringImport
 
 
 def load(module: str) -> Callable[[], object]:
     """Import ``module`` and return its ``main``; a SIGINT or SIGTERM during the import ends
-    the process quietly with status 0. The signals' dispositions are restored afterwards
-    (``run_node`` installs its own)."""
-    ignored = {sig for sig in (signal.SIGINT, signal.SIGTERM)
-               if signal.getsignal(sig) == signal.SIG_IGN}
-    previous = None
-    if signal.SIGTERM not in ignored:
-        previous = signal.signal(signal.SIGTERM, _raise_stop)
+    the process quietly with status 0. The exception the signal raises can be swallowed where
+    it lands (Python ignores exceptions in some import-machinery callbacks) or turned into
+    another (an extension module's initialisation), so whether a signal arrived is what
+    decides, once the import returns or fails. The signals' dispositions are restored
+    afterwards (``run_node`` installs its own); a signal the process was started with
+    ignored stays ignored."""
+    previous = {}
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        if signal.getsignal(sig) != signal.SIG_IGN:
+            previous[sig] = signal.signal(sig, _stop_import)
     try:
-        return importlib.import_module(module).main
-    except (KeyboardInterrupt, _StopDuringImport):
-        _quiet_exit()
+        main = importlib.import_module(module).main
+    except BaseException:
+        # The signal's exception itself, or what an extension module's initialisation made
+        # of it (pybind11 raises ImportError "initialization failed" from it).
+        if _received:
+            _quiet_exit()
+        raise
     finally:
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    if _received:
+        _quiet_exit()
+    return main
 
 
 def _quiet_exit() -> NoReturn:

@@ -146,6 +146,9 @@ class Launch:
             try:
                 self.proc.wait(timeout)
             except subprocess.TimeoutExpired:
+                # A launcher that hangs says where first (paramotion launch: faulthandler).
+                self.proc.send_signal(signal.SIGUSR1)
+                time.sleep(1.0)
                 os.killpg(self.proc.pid, signal.SIGKILL)
                 self.proc.wait()
         self._log.close()
@@ -192,7 +195,7 @@ def check_clean_stop(launch, group=True, every_node=True):
     a clean finish, i.e. exit code 0. Returns the launch output."""
     code = launch.stop(group=group)
     out = launch.output()
-    assert code == 0, out[-3000:]
+    assert code == 0, f'launcher exit code {code}\n' + out[-3000:]
     assert launch.leftover_pids() == [], out[-2000:]
     assert 'Traceback' not in out and 'KeyboardInterrupt' not in out, out[-3000:]
     assert 'sending SIGTERM' not in out and 'failed to terminate' not in out, out[-3000:]
