@@ -21,10 +21,10 @@ rclpy's own handler (which shuts the context down and wakes the executor) chains
 
 Once the node has stopped and done its own clean-up (a recorder has closed its bag, a simulator
 has disconnected PyBullet), what is left is the middleware's teardown: rcl destroys the node's
-entities and, with the last node, Fast DDS deletes the participant, joining its threads. Rarely
-(in one full test run on the loaded 2-core machine, on a terminal Ctrl-C of the five-process FAST
-graph) that never returned: the isolation controller's main thread stayed in
-``Node.destroy_node`` after every other node had gone.
+entities and, with the last node, Fast DDS deletes the participant, joining its threads. That
+join can, rarely, block for good: after a terminal Ctrl-C of the five-process FAST graph the
+isolation controller's main thread can stay in ``Node.destroy_node`` after every other node has
+gone.
 :func:`bounded_middleware_teardown` bounds it: a process stopped by a signal that is still in
 that teardown :data:`TEARDOWN_LIMIT_S` seconds after it began prints its threads' stacks and one
 line saying so, and exits 0, its own work being done. The deadline runs in a thread the C library

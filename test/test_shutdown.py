@@ -296,8 +296,8 @@ def test_the_teardown_limit_holds_only_while_a_signalled_teardown_runs(tmp_path,
 
 def test_a_node_process_bounds_its_middleware_teardown_after_ctrl_c(tmp_path):
     """Through ``run_node``: a node whose rclpy teardown never returns (a C call holding the
-    interpreter lock after rcl's, standing in for the Fast DDS participant deletion that did
-    not return once in CI) still exits 0 within the limit after a terminal Ctrl-C, saying
+    interpreter lock after rcl's, standing in for a Fast DDS participant deletion that
+    blocks for good) still exits 0 within the limit after a terminal Ctrl-C, saying
     why."""
     script = tmp_path / 'stuck_node.py'
     script.write_text(
