@@ -39,12 +39,29 @@ def quiet_stdout() -> Iterator[None]:
         os.close(devnull)
 
 
+@functools.cache
+def _client_class() -> type[BulletClient]:
+    """``BulletClient`` with ``_client = -1`` until ``pybullet.connect`` returns.
+
+    ``BulletClient.__init__`` sets ``_client`` only after connecting, so a Ctrl-C during the
+    connection leaves an object without it. Its ``__del__`` would look the name up on the
+    ``pybullet`` module, and Python would print the ``AttributeError`` as ignored under the
+    node's quiet exit. With the class default, ``__del__`` sees no connection and does
+    nothing.
+    """
+    from pybullet_utils.bullet_client import BulletClient
+
+    class Client(BulletClient):
+        _client = -1
+
+    return Client
+
+
 def bullet_client() -> BulletClient:
     """A new headless (DIRECT) PyBullet client, without the start-up banner."""
     with quiet_stdout():
         import pybullet
-        from pybullet_utils.bullet_client import BulletClient
-        return BulletClient(connection_mode=pybullet.DIRECT)
+        return _client_class()(connection_mode=pybullet.DIRECT)
 
 
 class SimulationNode(ClockSourceNode):

@@ -364,3 +364,29 @@ def test_a_signal_while_a_node_imports_its_module_ends_it_quietly(tmp_path, sig)
             proc.kill()
             proc.wait()
     assert proc.returncode == 0 and out == '' and err == '', (proc.returncode, out, err)
+
+
+def test_a_ctrl_c_while_pybullet_connects_leaves_no_ignored_error(monkeypatch):
+    """A KeyboardInterrupt inside ``pybullet.connect`` (a Ctrl-C while the simulator node starts
+    its physics client) propagates, and collecting the half-made client reports nothing (plain
+    ``BulletClient``'s ``__del__`` raises an ``AttributeError`` there, printed as ignored)."""
+    import gc
+
+    import pybullet
+
+    from paramotion.sim import bullet_client
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    unraisable = []
+    monkeypatch.setattr(sys, 'unraisablehook', unraisable.append)
+    monkeypatch.setattr(pybullet, 'connect', interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        bullet_client()
+    gc.collect()
+    assert unraisable == []
+    monkeypatch.undo()
+    client = bullet_client()
+    assert client.getConnectionInfo()['isConnected'] == 1
+    client.disconnect()
