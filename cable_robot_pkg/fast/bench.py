@@ -46,11 +46,18 @@ def cpu_breakdown(duration: float = 3.0, launch_args: dict | None = None) -> dic
     (PyBullet, cable and wind models), its state messages, each node's callbacks (timers and
     subscriptions, message conversion and the control algorithm), and the rest (the executor,
     messages taken, ``/clock``). Callbacks are timed with ``time.process_time``; the physics
-    step is also split into the cable wrench, the wind wrench, the servo commands and the rest
-    (PyBullet's step and the winches), rows "of which" that are not added again.
+    step is also split into PyBullet's ``stepSimulation``, the compiled winch, cable and wind
+    arithmetic (:func:`cable_robot_pkg.fast.cable_kernel.plant_step`; with numpy the cable
+    and the wind wrench), the servo commands and the rest (state reads, turbulence and gust
+    look-ups, Python), rows "of which" that are not added again.
     ``launch_args``: launch arguments over the defaults (e.g. ``{'config': path}``)."""
+    import types
     from collections import Counter
 
+    import pybullet
+
+    import cable_robot_pkg.fast.cables as cables_module
+    import cable_robot_pkg.fast.plant as plant_module
     from cable_robot_pkg.fast.scenario import LAUNCH_FILE, detach_qos_event_handlers
     from paramotion.graph import Graph
     from paramotion.launch import graph_from_launch
@@ -74,11 +81,22 @@ def cpu_breakdown(duration: float = 3.0, launch_args: dict | None = None) -> dic
                                  sim.advance_time)
         sim.publish_state = timed('fast_sim: state messages', sim.publish_state)
         plant = sim.plant
+        kernel = cables_module.compiled_kernel('plant_step')
         for key, owner, name in (('cable wrench', plant.cables, 'wrench'),
                                  ('wind wrench', plant.wind, 'wrench'),
-                                 ('leg and hinge servo commands', plant, 'apply_commands')):
+                                 ('leg and hinge servo commands', plant, '_send_commands')):
             if owner is not None:
                 setattr(owner, name, timed(f'  of which {key}', getattr(owner, name), within))
+        # PyBullet's step and the compiled step, timed through the plant module's names.
+        bullet = types.SimpleNamespace(**vars(pybullet))
+        bullet.stepSimulation = _timed_keywords('  of which PyBullet stepSimulation',
+                                                pybullet.stepSimulation, within)
+        saved_module = plant_module.pybullet
+        saved_kernel = cables_module._KERNELS['plant_step']
+        plant_module.pybullet = bullet
+        if kernel is not None:
+            cables_module._KERNELS['plant_step'] = (saved_kernel[0], timed(
+                '  of which winches, cables, wind (compiled)', kernel, within))
         for label, node in nodes.items():
             key = f'{label}: callbacks' if node is not sim else 'fast_sim: command callbacks'
             for sub in node.subscriptions:
@@ -86,22 +104,37 @@ def cpu_breakdown(duration: float = 3.0, launch_args: dict | None = None) -> dic
             for tmr in node.timers:
                 tmr.callback = timed(key, tmr.callback)
         detach_qos_event_handlers(graph.nodes)
-        graph.run_lockstep(sim, max_sim_time=0.2)
-        acc.clear()
-        within.clear()
-        c0 = time.process_time()
-        graph.run_lockstep(sim, max_sim_time=0.2 + duration)
+        try:
+            graph.run_lockstep(sim, max_sim_time=0.2)
+            acc.clear()
+            within.clear()
+            c0 = time.process_time()
+            graph.run_lockstep(sim, max_sim_time=0.2 + duration)
+        finally:
+            plant_module.pybullet = saved_module
+            cables_module._KERNELS['plant_step'] = saved_kernel
         total = time.process_time() - c0
     out = {}
     for key, value in acc.most_common():
         out[key] = value / duration
         if key.startswith('fast_sim: physics step'):
             out.update((k, v / duration) for k, v in within.most_common())
-            out['  of which PyBullet and the rest of the step'] = (
+            out['  of which the rest (state reads, look-ups, Python)'] = (
                 value - sum(within.values())) / duration
     out['executor, messages taken, /clock'] = (total - sum(acc.values())) / duration
     out['total'] = total / duration
     return out
+
+
+def _timed_keywords(key, fn, into):
+    """``fn`` (called with keyword arguments) timed into ``into[key]``."""
+    def wrapper(*args, **kwargs):
+        t0 = time.process_time()
+        try:
+            return fn(*args, **kwargs)
+        finally:
+            into[key] += time.process_time() - t0
+    return wrapper
 
 
 #: Physics settings compared by :func:`physics_settings`: (label, physics_dt s, solver

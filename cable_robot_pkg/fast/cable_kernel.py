@@ -86,3 +86,81 @@ def cable_wrench(r: np.ndarray, anchors: np.ndarray, mask: np.ndarray, position:
             torque[0] += c0
             torque[1] += c1
             torque[2] += c2
+
+
+@njit(cache=True, nogil=True, error_model='numpy')
+def plant_step(winch_cmd: np.ndarray, winch_rate_cmd: np.ndarray, winch_elapsed: float,
+               winch_max_step: float, dt: float, unstretched: np.ndarray, r: np.ndarray,
+               anchors: np.ndarray, mask: np.ndarray, position: np.ndarray, lin: np.ndarray,
+               ang: np.ndarray, EA: np.ndarray, damping: np.ndarray, wind_on: bool,
+               wind: np.ndarray, block: np.ndarray, j: int, block2: np.ndarray, j2: int,
+               r_cp: np.ndarray, leg_cmd: np.ndarray, leg_rate_cmd: np.ndarray,
+               leg_since: float, leg_min: float, leg_max: float, nominal: np.ndarray,
+               out: np.ndarray, slack: np.ndarray) -> None:
+    """The arithmetic of one ``FeedSupportPlant.step`` in one call, in numpy's order.
+
+    Winches (``unstretched`` moves toward ``winch_cmd + winch_rate_cmd * winch_elapsed`` by
+    at most ``winch_max_step``), the cable wrench (:func:`cable_wrench` with the winch rates),
+    the wind wrench of ``WindModel.wrench`` (``wind``: mean speed U, cos and sin of the
+    direction, ``0.5 rho Cd A``, torque scale, turbulence intensity, interpolation fraction,
+    gust speed; turbulence columns ``block[:, j]`` and ``block2[:, j2]``; ``r_cp`` the centre
+    of pressure in world axes) added to it, and the leg servo targets (clipped to the stroke).
+
+    ``out`` (3 + 3 + 3 + 3 + 4 n + 6 + 6,) receives: force, torque (cables + wind), wind
+    force, wind torque, tensions, stretched lengths, new unstretched lengths, winch rates,
+    leg targets, leg targets minus ``nominal``; ``slack`` (n,) the slack flags.
+    """
+    n = unstretched.shape[0]
+    o = 12
+    tensions = out[o:o + n]
+    lengths = out[o + n:o + 2 * n]
+    new_l0 = out[o + 2 * n:o + 3 * n]
+    rates = out[o + 3 * n:o + 4 * n]
+    for i in range(n):
+        goal = winch_cmd[i] + winch_rate_cmd[i] * winch_elapsed
+        s = goal - unstretched[i]
+        if s < -winch_max_step:
+            s = -winch_max_step
+        if s > winch_max_step:
+            s = winch_max_step
+        new_l0[i] = unstretched[i] + s
+        rates[i] = s / dt
+    force = out[0:3]
+    torque = out[3:6]
+    cable_wrench(r, anchors, mask, position, lin, ang, new_l0, rates, EA, damping, force,
+                 torque, tensions, lengths, slack)
+    if wind_on:
+        frac = wind[6]
+        tu = np.empty(6)
+        for i in range(6):
+            tu[i] = (1.0 - frac) * block[i, j] + frac * block2[i, j2]
+        c, s = wind[1], wind[2]
+        along = wind[0] + tu[0] + wind[7]
+        v0 = along * c - tu[1] * s
+        v1 = along * s + tu[1] * c
+        v2 = tu[2]
+        speed = wind[3] * math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+        f0, f1, f2 = speed * v0, speed * v1, speed * v2
+        m = math.sqrt(f0 * f0 + f1 * f1 + f2 * f2) * wind[4] * wind[5]
+        r0, r1, r2 = r_cp[0], r_cp[1], r_cp[2]
+        t0 = (r1 * f2 - r2 * f1) + m * tu[3]
+        t1 = (r2 * f0 - r0 * f2) + m * tu[4]
+        t2 = (r0 * f1 - r1 * f0) + m * tu[5]
+    else:
+        f0 = f1 = f2 = t0 = t1 = t2 = 0.0
+    out[6], out[7], out[8], out[9], out[10], out[11] = f0, f1, f2, t0, t1, t2
+    force[0] += f0
+    force[1] += f1
+    force[2] += f2
+    torque[0] += t0
+    torque[1] += t1
+    torque[2] += t2
+    o = 12 + 4 * n
+    for i in range(6):
+        x = leg_cmd[i] + leg_rate_cmd[i] * leg_since
+        if x < leg_min:
+            x = leg_min
+        if x > leg_max:
+            x = leg_max
+        out[o + i] = x
+        out[o + 6 + i] = x - nominal[i]

@@ -154,7 +154,7 @@ class CableSystem:
         the compiled :func:`cable_robot_pkg.fast.cable_kernel.cable_wrench` (same arithmetic
         in the same order, bit-identical; ``PARAMOTION_BACKEND=numpy`` keeps numpy).
         """
-        kernel = _wrench_kernel()
+        kernel = compiled_kernel('cable_wrench')
         if kernel is not None:
             r = self.attach @ np.asarray(rotation).T
             n = self.n
@@ -232,20 +232,22 @@ class CableSystem:
         return self.unstretched_for(lengths, t), lengths, t
 
 
-#: (PARAMOTION_BACKEND value, kernel or None) last resolved by :func:`_wrench_kernel`.
-_KERNEL: list = [object(), None]
+#: Compiled kernel name -> (PARAMOTION_BACKEND value, kernel or None), see compiled_kernel.
+_KERNELS: dict = {}
 
 
-def _wrench_kernel():
-    """The compiled wrench kernel, or None for numpy (resolved again when
-    ``PARAMOTION_BACKEND`` changes)."""
+def compiled_kernel(name: str):
+    """The numba kernel ``name`` of :mod:`cable_robot_pkg.fast.cable_kernel`, or None for
+    numpy (resolved again when ``PARAMOTION_BACKEND`` changes)."""
     env = os.environ.get('PARAMOTION_BACKEND')
-    if _KERNEL[0] != env:
+    hit = _KERNELS.get(name)
+    if hit is None or hit[0] != env:
         kernel = None
         if resolve_backend() == 'numba':
-            from cable_robot_pkg.fast.cable_kernel import cable_wrench as kernel
-        _KERNEL[:] = [env, kernel]
-    return _KERNEL[1]
+            from cable_robot_pkg.fast import cable_kernel
+            kernel = getattr(cable_kernel, name)
+        hit = _KERNELS[name] = (env, kernel)
+    return hit[1]
 
 
 def _cross(a, b):

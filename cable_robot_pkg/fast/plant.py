@@ -32,6 +32,7 @@ import numpy as np
 import pybullet
 from numpy.typing import ArrayLike
 
+from cable_robot_pkg.fast.cables import compiled_kernel
 from cable_robot_pkg.fast.focal_surface import hinge_rotation
 from paramotion.gough_stewart import inverse_kinematics, jacobian
 from paramotion.rotations import quat_from_matrix
@@ -230,6 +231,10 @@ class FeedSupportPlant:
         self.winch_rates = np.zeros(self.cables.n)
         self.wind_force = np.zeros(3)
         self.wind_torque = np.zeros(3)
+        # The compiled step's wind constants (and placeholders when there is no wind).
+        self._wind_params = self.wind.kernel_parameters() if self.wind is not None \
+            else np.zeros(8)
+        self._no_block = np.zeros((6, 1))
 
     def _init_force_drive(self, gs):
         """Force drives: free the prismatic joints' default motors and compute the static
@@ -294,15 +299,21 @@ class FeedSupportPlant:
         only when their command changed (PyBullet keeps a motor's set-point until it is set
         again, so re-sending an unchanged one every step did nothing but cost time).
         """
-        cid = self._cid
         target = np.clip(self.leg_cmd + self.leg_rate_cmd * since, self.geom.leg_min,
                          self.geom.leg_max)
+        self._send_commands(target, target - self.nominal_lengths)
+
+    def _send_commands(self, target: np.ndarray, joint_target: np.ndarray) -> None:
+        """Leg drives toward ``target`` (lengths; ``joint_target`` the same minus the
+        nominal lengths, the prismatic joints' positions) and the hinge servos when their
+        command changed."""
+        cid = self._cid
         if self.force_drive:
             self._apply_force_drive(target, self.leg_rate_cmd)
         else:
             pybullet.setJointMotorControlArray(
                 self.body, self.ROD, pybullet.POSITION_CONTROL,
-                targetPositions=(target - self.nominal_lengths).tolist(),
+                targetPositions=joint_target.tolist(),
                 targetVelocities=self.leg_rate_cmd.tolist(), positionGains=self._leg_kp,
                 velocityGains=self._leg_kv, forces=self._leg_fmax, physicsClientId=cid)
         hinge = (float(self.hinge_cmd[0]), float(self.hinge_cmd[1]))
@@ -320,9 +331,63 @@ class FeedSupportPlant:
         """Advance one physics step: winches, cable and wind wrenches, servos, PyBullet.
 
         This runs 1000 times per simulated second, so it calls the PyBullet module directly
-        (with the client id) instead of through ``BulletClient`` attribute look-ups, reads the
-        trolley state once, and evaluates cables and wind in one pass each.
+        (with the client id) instead of through ``BulletClient`` attribute look-ups and reads
+        the trolley state once. With numba the winches, cables, wind and leg targets are one
+        compiled call (:func:`cable_robot_pkg.fast.cable_kernel.plant_step`, the same
+        arithmetic in the same order as :meth:`_step_numpy`, which is the path without
+        numba and with ``PARAMOTION_BACKEND=numpy``).
         """
+        kernel = compiled_kernel('plant_step')
+        if kernel is None:
+            self._step_numpy()
+            return
+        cid = self._cid
+        body = self.body
+        t = self.t
+        pos, q = pybullet.getBasePositionAndOrientation(body, physicsClientId=cid)
+        lin, ang = pybullet.getBaseVelocity(body, physicsClientId=cid)
+        R = np.array(pybullet.getMatrixFromQuaternion(q)).reshape(3, 3)
+        cables = self.cables
+        n = cables.n
+        wind = self.wind
+        wind_on = wind is not None and wind.U > 0.0
+        if wind_on:
+            block, j, block2, j2, frac = wind.turbulence_columns(t)
+            params = self._wind_params
+            params[6] = frac
+            params[7] = wind._gust(t)
+            r_cp = R @ wind.r_cp
+        else:
+            block = block2 = self._no_block
+            j = j2 = 0
+            params = r_cp = self._wind_params
+        out = np.empty(24 + 4 * n)
+        slack = np.empty(n, bool)
+        kernel(self.winch_cmd, self.winch_rate_cmd, t - self.winch_cmd_time,
+               self.winch_speed * self.dt, self.dt, self.unstretched, cables.attach @ R.T,
+               cables.anchors, cables.anchor_mask, np.array(pos), np.array(lin),
+               np.array(ang), cables.EA, cables.damping, wind_on, params, block, j, block2,
+               j2, r_cp, self.leg_cmd, self.leg_rate_cmd, t - self.leg_cmd_time,
+               self.geom.leg_min, self.geom.leg_max, self.nominal_lengths, out, slack)
+        self.last_tensions = out[12:12 + n]
+        self.last_lengths = out[12 + n:12 + 2 * n]
+        self.unstretched = out[12 + 2 * n:12 + 3 * n]
+        self.winch_rates = out[12 + 3 * n:12 + 4 * n]
+        self.slack = slack
+        if wind is not None:
+            self.wind_force, self.wind_torque = out[6:9], out[9:12]
+        pybullet.applyExternalForce(body, -1, out[0:3].tolist(), pos, pybullet.WORLD_FRAME,
+                                    physicsClientId=cid)
+        pybullet.applyExternalTorque(body, -1, out[3:6].tolist(), pybullet.WORLD_FRAME,
+                                     physicsClientId=cid)
+        legs = 12 + 4 * n
+        self._send_commands(out[legs:legs + 6], out[legs + 6:legs + 12])
+        pybullet.stepSimulation(physicsClientId=cid)
+        self.t += self.dt
+
+    def _step_numpy(self) -> None:
+        """:meth:`step` in numpy (cables through ``CableSystem.wrench``, wind through
+        ``WindModel.wrench``): the path without numba and the compiled step's reference."""
         cid = self._cid
         dt = self.dt
         # Winches: unstretched length follows the command at most at the speed limit.

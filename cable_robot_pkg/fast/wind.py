@@ -113,7 +113,10 @@ class WindModel:
             self.blocks[k] = np.array(rows)
         return self.blocks[k]
 
-    def _turbulence(self, t):
+    def turbulence_columns(self, t: float) -> tuple[np.ndarray, int, np.ndarray, int, float]:
+        """Where the turbulence at ``t`` is read: ``(block, j, block2, j2, frac)``, the
+        series being ``(1 - frac) block[:, j] + frac block2[:, j2]`` (blocks made on first
+        use, from the shared generator)."""
         x = t / self.dt
         i = int(math.floor(x))
         frac = x - i
@@ -121,13 +124,19 @@ class WindModel:
         b = self._block(k)
         k2, j2 = divmod(i + 1, self.n)
         b2 = b if k2 == k else self._block(k2)
+        return b, j, b2, j2, frac
+
+    def _turbulence(self, t):
+        b, j, b2, j2, frac = self.turbulence_columns(t)
         return (1.0 - frac) * b[:, j] + frac * b2[:, j2]
 
     def _gust(self, t):
         while self._gust_horizon <= t + self.gust_T and self.gust_rate > 0:
             self._gust_horizon += self.rng.exponential(1.0 / self.gust_rate)
             self.gusts.append((self._gust_horizon, self.gust_amp * self.rng.uniform(0.5, 1.0)))
-        self.gusts = [(t0, a) for t0, a in self.gusts if t0 + self.gust_T > t - 60.0]
+        if self.gusts and self.gusts[0][0] + self.gust_T <= t - 60.0:
+            # Gusts over for a minute are dropped (they add nothing to the sum below).
+            self.gusts = [(t0, a) for t0, a in self.gusts if t0 + self.gust_T > t - 60.0]
         g = 0.0
         for t0, a in self.gusts:
             if t0 <= t < t0 + self.gust_T:
@@ -145,6 +154,14 @@ class WindModel:
         along = self.U + u + self._gust(t)
         c, s = math.cos(self.direction), math.sin(self.direction)
         return np.array([along * c - v * s, along * s + v * c, w])
+
+    def kernel_parameters(self) -> np.ndarray:
+        """The constants of :meth:`wrench` as the compiled plant step takes them (its
+        ``wind`` argument, the last two entries filled per step): U, cos and sin of the
+        direction, ``0.5 rho Cd A``, torque scale, turbulence intensity, fraction, gust."""
+        return np.array([self.U, math.cos(self.direction), math.sin(self.direction),
+                         0.5 * RHO_AIR * self.cd * self.area, self.torque_scale, self.I,
+                         0.0, 0.0])
 
     def wrench(self, t: float,
                rotation: ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray]:
