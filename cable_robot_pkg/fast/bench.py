@@ -56,7 +56,6 @@ def cpu_breakdown(duration: float = 3.0, launch_args: dict | None = None) -> dic
 
     import pybullet
 
-    import cable_robot_pkg.fast.cables as cables_module
     import cable_robot_pkg.fast.plant as plant_module
     from cable_robot_pkg.fast.scenario import LAUNCH_FILE, detach_qos_event_handlers
     from paramotion.graph import Graph
@@ -81,7 +80,7 @@ def cpu_breakdown(duration: float = 3.0, launch_args: dict | None = None) -> dic
                                  sim.advance_time)
         sim.publish_state = timed('fast_sim: state messages', sim.publish_state)
         plant = sim.plant
-        kernel = cables_module.compiled_kernel('plant_step')
+        kernel = plant._kernel
         for key, owner, name in (('cable wrench', plant.cables, 'wrench'),
                                  ('wind wrench', plant.wind, 'wrench'),
                                  ('leg and hinge servo commands', plant, '_send_commands')):
@@ -92,11 +91,9 @@ def cpu_breakdown(duration: float = 3.0, launch_args: dict | None = None) -> dic
         bullet.stepSimulation = _timed_keywords('  of which PyBullet stepSimulation',
                                                 pybullet.stepSimulation, within)
         saved_module = plant_module.pybullet
-        saved_kernel = cables_module._KERNELS['plant_step']
         plant_module.pybullet = bullet
         if kernel is not None:
-            cables_module._KERNELS['plant_step'] = (saved_kernel[0], timed(
-                '  of which winches, cables, wind (compiled)', kernel, within))
+            plant._kernel = timed('  of which winches, cables, wind (compiled)', kernel, within)
         for label, node in nodes.items():
             key = f'{label}: callbacks' if node is not sim else 'fast_sim: command callbacks'
             for sub in node.subscriptions:
@@ -112,7 +109,6 @@ def cpu_breakdown(duration: float = 3.0, launch_args: dict | None = None) -> dic
             graph.run_lockstep(sim, max_sim_time=0.2 + duration)
         finally:
             plant_module.pybullet = saved_module
-            cables_module._KERNELS['plant_step'] = saved_kernel
         total = time.process_time() - c0
     out = {}
     for key, value in acc.most_common():

@@ -106,9 +106,11 @@ def plant_step(winch_cmd: np.ndarray, winch_rate_cmd: np.ndarray, winch_elapsed:
     gust speed; turbulence columns ``block[:, j]`` and ``block2[:, j2]``; ``r_cp`` the centre
     of pressure in world axes) added to it, and the leg servo targets (clipped to the stroke).
 
-    ``out`` (3 + 3 + 3 + 3 + 4 n + 6 + 6,) receives: force, torque (cables + wind), wind
+    ``out`` (3 + 3 + 3 + 3 + 4 n + 6 + 6 + 3,) receives: force, torque (cables + wind), wind
     force, wind torque, tensions, stretched lengths, new unstretched lengths, winch rates,
-    leg targets, leg targets minus ``nominal``; ``slack`` (n,) the slack flags.
+    leg targets, leg targets minus ``nominal``, the smallest and largest tension (NaN if a
+    tension is NaN, as numpy's ``min``/``max``) and the number of slack cables; ``slack``
+    (n,) the slack flags.
     """
     n = unstretched.shape[0]
     o = 12
@@ -164,3 +166,20 @@ def plant_step(winch_cmd: np.ndarray, winch_rate_cmd: np.ndarray, winch_elapsed:
             x = leg_max
         out[o + i] = x
         out[o + 6 + i] = x - nominal[i]
+    lo = hi = tensions[0]
+    n_slack = 0
+    has_nan = False
+    for i in range(n):
+        t = tensions[i]
+        if t != t:
+            has_nan = True
+        if t < lo:
+            lo = t
+        if t > hi:
+            hi = t
+        if slack[i]:
+            n_slack += 1
+    if has_nan:
+        lo = hi = np.nan
+    o += 12
+    out[o], out[o + 1], out[o + 2] = lo, hi, n_slack

@@ -206,6 +206,7 @@ class ConstantAccelerationKF:
         self.P = np.diag([1.0, 1.0, 1.0])
         self.t = None
         self._models = {}         # (dt, q) -> (F, Q), see _model
+        self._extrapolations = {}  # (dt, order) -> F, see predict
 
     def reset(self, t: float, z: ArrayLike) -> None:
         """Start at measurement ``z`` (m,) at time ``t`` with unknown rates."""
@@ -242,9 +243,15 @@ class ConstantAccelerationKF:
     def predict(self, t: float, order: int = 2) -> np.ndarray:
         """State [p, v, a] (3, m) extrapolated to time ``t`` (no update); ``order`` 1
         extrapolates with the velocity only."""
-        F = _transition(t - self.t)
-        if order < 2:
-            F[0, 2] = F[1, 2] = 0.0
+        key = (t - self.t, order)
+        F = self._extrapolations.get(key)      # a few dozen horizons recur (frame grid)
+        if F is None:
+            if len(self._extrapolations) >= 256:
+                self._extrapolations.clear()
+            F = _transition(key[0])
+            if order < 2:
+                F[0, 2] = F[1, 2] = 0.0
+            self._extrapolations[key] = F
         return F @ self.x
 
 
@@ -296,6 +303,15 @@ class WienerPredictor:
             - 1.0                      # (taps - 1, freqs): H(f) = 1 + w . this
         self.wanted = set()            # horizons asked for since the last fit
         self.fit_stamp = None
+        self._lag_rows = self.spacing * np.arange(1, self.taps)
+        # Values computed once per state and asked for several times per control update:
+        # the predictions per horizon (until the history or the weights change) and the peak.
+        self._version = 0              # counts changes of the history and of the weights
+        self._predictions = (-1, {})   # (version, {horizon: predicted value})
+        self._peak = None              # (groups, peak) of the current weights
+
+    def _changed(self):
+        self._version += 1
 
     def reset(self) -> None:
         """Forget the history and the fitted weights (a dropout or a new chart)."""
@@ -304,10 +320,13 @@ class WienerPredictor:
         self.weights = {}
         self.peaks = {}
         self.fit_stamp = None
+        self._peak = None
+        self._changed()
 
     def add(self, stamp: float, value: ArrayLike) -> None:
         """Fuse ``value`` (m,) captured at ``stamp``."""
         value = np.asarray(value, float)
+        self._changed()
         if self.last_stamp is not None:
             gap = (stamp - self.last_stamp) / self.period
             if abs(gap) < 0.25:               # another view of the newest frame
@@ -376,6 +395,8 @@ class WienerPredictor:
                 w[a], peaks[a] = self._bounded(XtX[a], Xty[a])
             self.weights[h], self.peaks[h] = w, peaks
         self.fit_stamp = self.last_stamp
+        self._peak = None
+        self._changed()
         return True
 
     def _peaks(self, w):
@@ -412,8 +433,10 @@ class WienerPredictor:
         horizons, per group of ``m / groups`` coordinates (position, rotation)."""
         if not self.peaks:
             return np.ones(groups)
-        p = np.max(np.stack(list(self.peaks.values())), axis=0)
-        return p.reshape(groups, -1).max(axis=1)
+        if self._peak is None or self._peak[0] != groups:
+            p = np.max(np.stack(list(self.peaks.values())), axis=0)
+            self._peak = (groups, p.reshape(groups, -1).max(axis=1))
+        return self._peak[1].copy()
 
     def response(self, horizon: int, freqs: ArrayLike) -> np.ndarray:
         """Complex frequency response (m, len(freqs)) of the fitted predictor including the
@@ -442,13 +465,24 @@ class WienerPredictor:
             return None
         if self._n <= self.spacing * (self.taps - 1):
             return None
+        if self._predictions[0] != self._version:
+            self._predictions = (self._version, {})
+        known = self._predictions[1]
         last = self._buf[self._n - 1]
-        lags = self._n - 1 - self.spacing * np.arange(1, self.taps)
-        r = (self._buf[lags] - last).T                                # (m, taps - 1)
         out = []
         for n in (n0, n0 + 1):
-            out.append(last if n == 0 else last + np.sum(self.weights[n] * r, axis=1)
-                       if n in self.weights else None)
+            if n == 0:
+                out.append(last)
+            elif n in known:
+                out.append(known[n])
+            elif n in self.weights:
+                r = known.get('r')
+                if r is None:
+                    r = known['r'] = (self._buf[self._n - 1 - self._lag_rows] - last).T
+                known[n] = last + np.sum(self.weights[n] * r, axis=1)     # r: (m, taps - 1)
+                out.append(known[n])
+            else:
+                out.append(None)
         if frac == 0.0 or out[1] is None:
             return out[0]
         return (1.0 - frac) * out[0] + frac * out[1]
@@ -488,7 +522,8 @@ class PosePredictor:
             phi = rotvec_from_matrix(self.R_ref.T @ rotation)
             self.pos.update(stamp, position)
             self.rot.update(stamp, phi)
-            if np.linalg.norm(self.rot.x[0]) > 0.2:
+            chart = self.rot.x[0]
+            if math.sqrt(chart.dot(chart)) > 0.2:     # np.linalg.norm's arithmetic
                 # Re-anchor the rotation-vector chart so that it stays small.
                 self.R_ref = self.R_ref @ matrix_from_rotvec(self.rot.x[0])
                 self.rot.x[0] = 0.0
@@ -735,6 +770,7 @@ class IsolationController:
         self.nominal_p, self.nominal_R = (np.asarray(a, float) for a in nominal_relative)
         self.nominal_lengths = inverse_kinematics(geometry, self.nominal_p, self.nominal_R)
         self.trim = np.zeros(6)
+        self._trim_R = (None, None)    # (trim rotation vector, its matrix)
         self.lu_cmd = np.concatenate([self.nominal_p, np.zeros(3)])
         self.lu_prev_error = None
         self.last_feed_time = None
@@ -848,7 +884,7 @@ class IsolationController:
         rotation = np.asarray(rotation, float)
         phi = None if self.wiener_ref is None else \
             rotvec_from_matrix(self.wiener_ref.T @ rotation)
-        if phi is None or np.linalg.norm(phi) > 0.5:
+        if phi is None or math.sqrt(phi.dot(phi)) > 0.5:    # np.linalg.norm's arithmetic
             self.wiener_ref = rotation.copy()
             self.wiener.reset()
             phi = np.zeros(3)
@@ -1100,7 +1136,10 @@ class IsolationController:
         """Desired lower platform pose in the (compensated) upper platform frame at ``t``."""
         p_b, R_b = self._base_command(t)
         p_d = target_p + self.trim[:3]
-        R_d = matrix_from_rotvec(self.trim[3:]) @ target_R
+        trim_rotvec = self.trim[3:].tolist()
+        if self._trim_R[0] != trim_rotvec:      # the trim changes with feed frames only
+            self._trim_R = (trim_rotvec, matrix_from_rotvec(trim_rotvec))
+        R_d = self._trim_R[1] @ target_R
         rel_p, rel_R = R_b.T @ (p_d - p_b), R_b.T @ R_d
         if self.reaction is not None:
             # (p_b, R_b) is the reaction-free base: moving the payload by e relative to the
@@ -1112,10 +1151,12 @@ class IsolationController:
         return rel_p, rel_R
 
     def _clip(self, lengths):
-        clipped = bool(np.any(lengths < self.lo) or np.any(lengths > self.hi))
+        lo, hi = self.lo, self.hi
+        clipped = any(x < lo or x > hi for x in lengths.tolist())
         if clipped:
             self.clip_count += 1
-        return np.clip(lengths, self.lo, self.hi), clipped
+            return np.clip(lengths, lo, hi), True
+        return lengths.copy(), False      # np.clip's result when nothing is outside
 
     def _open_loop_update(self, latest):
         """Legs from the trajectory alone: the base assumed at the pose the coarse loop

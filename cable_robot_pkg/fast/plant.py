@@ -228,6 +228,10 @@ class FeedSupportPlant:
         self.last_tensions = np.zeros(self.cables.n)
         self.last_lengths = lengths
         self.slack = np.zeros(self.cables.n, bool)
+        self.slack_count = 0                     # slack cables at the last step
+        self.tension_range = (0.0, 0.0)          # smallest and largest tension, last step
+        # The compiled step (None: numpy), chosen when the plant is built.
+        self._kernel = compiled_kernel('plant_step')
         self.winch_rates = np.zeros(self.cables.n)
         self.wind_force = np.zeros(3)
         self.wind_torque = np.zeros(3)
@@ -335,9 +339,10 @@ class FeedSupportPlant:
         the trolley state once. With numba the winches, cables, wind and leg targets are one
         compiled call (:func:`cable_robot_pkg.fast.cable_kernel.plant_step`, the same
         arithmetic in the same order as :meth:`_step_numpy`, which is the path without
-        numba and with ``PARAMOTION_BACKEND=numpy``).
+        numba and with ``PARAMOTION_BACKEND=numpy`` when the plant is built). Also sets
+        ``tension_range`` and ``slack_count`` for the simulator's bookkeeping.
         """
-        kernel = compiled_kernel('plant_step')
+        kernel = self._kernel
         if kernel is None:
             self._step_numpy()
             return
@@ -361,7 +366,7 @@ class FeedSupportPlant:
             block = block2 = self._no_block
             j = j2 = 0
             params = r_cp = self._wind_params
-        out = np.empty(24 + 4 * n)
+        out = np.empty(27 + 4 * n)
         slack = np.empty(n, bool)
         kernel(self.winch_cmd, self.winch_rate_cmd, t - self.winch_cmd_time,
                self.winch_speed * self.dt, self.dt, self.unstretched, cables.attach @ R.T,
@@ -374,6 +379,8 @@ class FeedSupportPlant:
         self.unstretched = out[12 + 2 * n:12 + 3 * n]
         self.winch_rates = out[12 + 3 * n:12 + 4 * n]
         self.slack = slack
+        self.tension_range = (float(out[24 + 4 * n]), float(out[25 + 4 * n]))
+        self.slack_count = int(out[26 + 4 * n])
         if wind is not None:
             self.wind_force, self.wind_torque = out[6:9], out[9:12]
         pybullet.applyExternalForce(body, -1, out[0:3].tolist(), pos, pybullet.WORLD_FRAME,
@@ -403,6 +410,8 @@ class FeedSupportPlant:
         f, tq, tens, lengths, slack = self.cables.wrench(np.array(pos), R, np.array(lin),
                                                          np.array(ang), self.unstretched, rates)
         self.last_tensions, self.last_lengths, self.slack = tens, lengths, slack
+        self.tension_range = (float(tens.min()), float(tens.max()))
+        self.slack_count = int(np.count_nonzero(slack))
         self.winch_rates = rates
         if self.wind is not None:
             wf, wt = self.wind.wrench(self.t, R)

@@ -119,12 +119,19 @@ class FastSimNode(SimulationNode):
 
     # ------------------------------------------------------------------ physics
     def step_physics(self, dt):
-        self.plant.step()
         pl = self.plant
-        self.slack_steps += pl.slack
-        self.over_limit_steps += pl.last_tensions > pl.t_max
-        self.tension_min = min(self.tension_min, float(pl.last_tensions.min()))
-        self.tension_max = max(self.tension_max, float(pl.last_tensions.max()))
+        pl.step()
+        # Counters and extremes from the step's own summary (array work only when a cable is
+        # slack or over its limit); NaN tensions count as numpy's comparisons count them.
+        low, high = pl.tension_range
+        if pl.slack_count:
+            self.slack_steps += pl.slack
+        if not high <= pl.t_max:
+            self.over_limit_steps += pl.last_tensions > pl.t_max
+        if low < self.tension_min:
+            self.tension_min = low
+        if high > self.tension_max:
+            self.tension_max = high
 
     def publish_state(self):
         pl = self.plant
