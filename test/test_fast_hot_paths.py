@@ -127,3 +127,79 @@ def test_compiled_step_summary_propagates_nan_as_numpy():
         assert np.array_equal([lo, hi], want, equal_nan=True)
         assert count == np.count_nonzero(slack) and 0 < count < n
     assert np.isnan(hi)
+
+
+def test_wiener_predictions_and_peak_equal_the_formulas_while_the_history_changes():
+    """``WienerPredictor.predict`` keeps its predictions per horizon and ``peak`` its value
+    until the history or the weights change: every answer equals the formula evaluated
+    afresh (``z_j + sum_l w_l (z_{j - l s} - z_j)``, linear between horizons; the largest
+    fitted peak per group), through refits, extra views of a frame and a reset."""
+    from cable_robot_pkg.fast.isolation import WienerPredictor
+    rng = np.random.default_rng(21)
+    period = 0.005
+    wp = WienerPredictor(6, period, taps=8, spacing=2, window=4.0, refit=0.5, min_span=1.0,
+                         peak_max=3.0)
+    t = np.arange(0.0, 6.0, period)
+    z = np.column_stack([np.sin(2 * np.pi * f * t) for f in (0.5, 0.8, 1.1, 1.4, 1.7, 2.0)])
+    z += rng.normal(0.0, 1e-3, z.shape)
+    checked = 0
+    for j, stamp in enumerate(t):
+        if j == 700:
+            wp.reset()
+        wp.add(stamp, z[j])
+        if j % 3 == 0:
+            wp.add(stamp, z[j] + rng.normal(0.0, 1e-3, 6))     # a second view of the frame
+        for lead in (0.004, 0.006, 0.0, 0.0123, 0.004):
+            got = wp.predict(stamp + lead)
+            if got is None:
+                continue
+            h = max((stamp + lead - wp.last_stamp) / period, 0.0)
+            n0 = int(np.floor(h + 1e-6))
+            frac = h - n0 if h - n0 > 1e-6 else 0.0
+            last = wp._buf[wp._n - 1]
+            lags = wp._n - 1 - wp.spacing * np.arange(1, wp.taps)
+            r = (wp._buf[lags] - last).T
+
+            def at(n):
+                return last if n == 0 else last + np.sum(wp.weights[n] * r, axis=1)
+            want = at(n0) if frac == 0.0 else (1.0 - frac) * at(n0) + frac * at(n0 + 1)
+            assert np.array_equal(got, want)
+            checked += 1
+        if wp.peaks:
+            p = np.max(np.stack(list(wp.peaks.values())), axis=0)
+            assert np.array_equal(wp.peak(), p.reshape(2, -1).max(axis=1))
+    assert checked > 1000
+
+
+def test_kalman_extrapolation_and_leg_clip_equal_the_formulas():
+    """``ConstantAccelerationKF.predict`` keeps its transition matrices per horizon;
+    ``IsolationController._clip`` checks floats: both equal the plain formulas."""
+    from cable_robot_pkg.fast.isolation import (
+        ConstantAccelerationKF,
+        IsolationController,
+        _transition,
+    )
+    rng = np.random.default_rng(5)
+    kf = ConstantAccelerationKF(3, 10.0, 0.001)
+    kf.reset(0.0, rng.normal(size=3))
+    for k in range(1, 400):
+        kf.update(0.005 * k, rng.normal(size=3))
+        for lead in (0.02, 0.025, 0.02, 0.0031):
+            for order in (1, 2, 2):
+                F = _transition(0.005 * k + lead - kf.t)
+                if order < 2:
+                    F[0, 2] = F[1, 2] = 0.0
+                assert np.array_equal(kf.predict(0.005 * k + lead, order), F @ kf.x)
+    ctl = IsolationController.from_config(load_config())
+    for _ in range(300):
+        lengths = rng.uniform(ctl.lo - 0.02, ctl.hi + 0.02, 6)
+        if rng.random() < 0.5:
+            lengths = rng.uniform(ctl.lo, ctl.hi, 6)
+        if rng.random() < 0.1:
+            lengths[rng.integers(6)] = np.nan
+        count = ctl.clip_count
+        got, clipped = ctl._clip(lengths)
+        want = bool(np.any(lengths < ctl.lo) or np.any(lengths > ctl.hi))
+        assert clipped == want and ctl.clip_count == count + want
+        assert np.array_equal(got, np.clip(lengths, ctl.lo, ctl.hi), equal_nan=True)
+        assert got is not lengths
