@@ -60,8 +60,12 @@ def test_fused_cable_wrench_is_bit_identical_to_reference(cfg, backend, monkeypa
     assert 0 < slack_seen < 200 * cables.n       # both taut and slack cables were exercised
 
 
-def test_length_rates_are_bit_identical_to_reference(cfg):
-    """The simulator's cable state message uses the fused geometry for dL/dt."""
+@pytest.mark.parametrize('backend', ['numba', 'numpy'])
+def test_length_rates_are_bit_identical_to_reference(cfg, backend, monkeypatch):
+    """The simulator's cable state message uses the fused geometry for dL/dt (compiled in
+    cable_kernel.py with numba)."""
+    pytest.importorskip(backend)
+    monkeypatch.setenv('PARAMOTION_BACKEND', backend)
     rng = np.random.default_rng(5)
     cables = cfg.cables
     base_p = cfg.chain.coarse_targets(*cfg.track.pose(0.0))[0]

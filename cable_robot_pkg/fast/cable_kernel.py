@@ -183,3 +183,36 @@ def plant_step(winch_cmd: np.ndarray, winch_rate_cmd: np.ndarray, winch_elapsed:
         lo = hi = np.nan
     o += 12
     out[o], out[o + 1], out[o + 2] = lo, hi, n_slack
+
+
+@njit(cache=True, nogil=True, error_model='numpy')
+def cable_length_rates(r: np.ndarray, anchors: np.ndarray, mask: np.ndarray,
+                       position: np.ndarray, lin: np.ndarray, ang: np.ndarray,
+                       rates: np.ndarray) -> None:
+    """Fill ``rates`` (n,) with dL/dt of ``CableSystem.length_rates``: the directions and the
+    projected velocities of :func:`cable_wrench`, operation for operation."""
+    n, k = mask.shape
+    a0, a1, a2 = ang[0], ang[1], ang[2]
+    for i in range(n):
+        p0 = position[0] + r[i, 0]
+        p1 = position[1] + r[i, 1]
+        p2 = position[2] + r[i, 2]
+        d0 = d1 = d2 = 0.0
+        for j in range(k):
+            s0 = anchors[i, j, 0] - p0
+            s1 = anchors[i, j, 1] - p1
+            s2 = anchors[i, j, 2] - p2
+            span_len = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
+            if mask[i, j]:
+                w0, w1, w2 = s0 / span_len, s1 / span_len, s2 / span_len
+            else:
+                w0 = w1 = w2 = 0.0
+            if j == 0:
+                d0, d1, d2 = w0, w1, w2
+            else:
+                d0, d1, d2 = d0 + w0, d1 + w1, d2 + w2
+        r0, r1, r2 = r[i, 0], r[i, 1], r[i, 2]
+        v0 = lin[0] + (a1 * r2 - a2 * r1)
+        v1 = lin[1] + (a2 * r0 - a0 * r2)
+        v2 = lin[2] + (a0 * r1 - a1 * r0)
+        rates[i] = -((v0 * d0 + v2 * d2) + v1 * d1)     # numpy's einsum adds x and z first

@@ -22,6 +22,7 @@ then ``L0 = EA L / (EA + T)``.
 """
 from __future__ import annotations
 
+import importlib
 import os
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -106,6 +107,13 @@ class CableSystem:
                      linear_velocity: ArrayLike, angular_velocity: ArrayLike) -> np.ndarray:
         """dL/dt (n,) from the trolley twist: minus the projection of each point's velocity on
         the cable direction (the cable shortens when the point moves toward the pulleys)."""
+        kernel = compiled_kernel('cable_length_rates')
+        if kernel is not None:      # the same arithmetic compiled (cable_kernel.py)
+            rates = np.empty(self.n)
+            kernel(self.attach @ np.asarray(rotation).T, self.anchors, self.anchor_mask,
+                   np.asarray(position, float), np.asarray(linear_velocity, float),
+                   np.asarray(angular_velocity, float), rates)
+            return rates
         r, dirs, _ = self._attachments(position, rotation)
         v = np.asarray(linear_velocity) + _cross(angular_velocity, r)
         return -np.einsum('ij,ij->i', v, dirs)
@@ -205,7 +213,7 @@ class CableSystem:
         pull = 1e-4
         A = np.vstack([W, pull * np.eye(self.n)])
         rhs = np.concatenate([b, pull * t_ref])
-        t = lsq_linear(A, rhs, bounds=(t_min, t_max), method='bvls').x
+        t = bounded_least_squares(A, rhs, t_min, t_max)
         # Cables strictly inside their limits absorb the residual (those on a bound stay).
         free = (t > t_min + 1e-9) & (t < t_max - 1e-9)
         if free.any():
@@ -236,18 +244,29 @@ class CableSystem:
 _KERNELS: dict = {}
 
 
-def compiled_kernel(name: str):
-    """The numba kernel ``name`` of :mod:`cable_robot_pkg.fast.cable_kernel`, or None for
-    numpy (resolved again when ``PARAMOTION_BACKEND`` changes)."""
+def compiled_kernel(name: str, module: str = 'cable_kernel'):
+    """The numba kernel ``name`` of ``cable_robot_pkg.fast.<module>``, or None for numpy
+    (resolved again when ``PARAMOTION_BACKEND`` changes)."""
     env = os.environ.get('PARAMOTION_BACKEND')
     hit = _KERNELS.get(name)
     if hit is None or hit[0] != env:
         kernel = None
         if resolve_backend() == 'numba':
-            from cable_robot_pkg.fast import cable_kernel
-            kernel = getattr(cable_kernel, name)
+            kernel = getattr(importlib.import_module(f'cable_robot_pkg.fast.{module}'), name)
         hit = _KERNELS[name] = (env, kernel)
     return hit[1]
+
+
+def bounded_least_squares(A: np.ndarray, b: np.ndarray, lower: float,
+                          upper: float) -> np.ndarray:
+    """``x`` minimising ``|A x - b|`` with ``lower <= x <= upper``: scipy's ``lsq_linear``
+    with ``method='bvls'``, compiled (:mod:`cable_robot_pkg.fast.bvls_kernel`) with numba."""
+    kernel = compiled_kernel('bvls', 'bvls_kernel')
+    if kernel is None:
+        return lsq_linear(A, b, bounds=(lower, upper), method='bvls').x
+    n = A.shape[1]
+    return kernel(np.ascontiguousarray(A, float), np.ascontiguousarray(b, float),
+                  np.full(n, float(lower)), np.full(n, float(upper)))
 
 
 def _cross(a, b):
