@@ -19,7 +19,10 @@ from numpy.typing import ArrayLike
 
 def matrix_from_rotvec(v: ArrayLike) -> np.ndarray:
     """Rotation matrix of a rotation vector (Rodrigues)."""
-    x, y, z = float(v[0]), float(v[1]), float(v[2])
+    if type(v) is np.ndarray and v.dtype == np.float64 and v.shape == (3,):
+        x, y, z = v.tolist()           # the same floats as below, in one call
+    else:
+        x, y, z = float(v[0]), float(v[1]), float(v[2])
     th = math.sqrt(x * x + y * y + z * z)
     if th < 1e-12:
         return np.array([[1.0, -z, y], [z, 1.0, -x], [-y, x, 1.0]])
@@ -40,8 +43,8 @@ def rotvec_from_matrix(R: ArrayLike) -> np.ndarray:
     s = math.sqrt(x * x + y * y + z * z)
     if s < 1e-12:
         return np.array([2.0 * x, 2.0 * y, 2.0 * z])
-    angle = 2.0 * math.atan2(s, w)
-    return np.array([x, y, z]) * (angle / s)
+    k = 2.0 * math.atan2(s, w) / s
+    return np.array([x * k, y * k, z * k])     # np.array([x, y, z]) * k, one array less
 
 
 def quat_from_matrix(R: ArrayLike) -> tuple[float, float, float, float]:
