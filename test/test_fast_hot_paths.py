@@ -293,3 +293,51 @@ def test_rotation_helpers_give_the_plain_formulas():
         assert np.array_equal(rotvec_from_matrix(R), want)
         assert np.allclose(rotvec_from_matrix(R), Rotation.from_matrix(R).as_rotvec(),
                            rtol=0.0, atol=1e-12)
+
+
+def _lone_covariance(q, r, dt, tol=1e-12, max_iter=60):
+    """The doubling algorithm of ``steady_state_covariance`` for one process noise, plain."""
+    from cable_robot_pkg.fast.isolation import _process_noise, _transition
+    A = _transition(dt).T
+    G = np.zeros((3, 3))
+    G[0, 0] = 1.0 / r
+    H = _process_noise(q, dt)
+    for _ in range(max_iter):
+        W = np.linalg.inv(np.eye(3) + G @ H)
+        A, G, H_next = A @ W @ A, G + A @ W @ G @ A.T, H + A.T @ H @ W @ A
+        done = np.abs(H_next - H).max() <= tol * np.abs(H_next).max()
+        H = H_next
+        if done:
+            break
+    return H
+
+
+def test_stacked_predictor_responses_equal_lone_ones():
+    """The predictor schedule evaluates its 32 candidate bandwidths stacked
+    (``steady_state_covariances``, ``predictor_responses``): each covariance and response
+    equals the one computed alone with 3x3 matrices, bit for bit."""
+    from cable_robot_pkg.fast.isolation import (
+        _transition,
+        predictor_response,
+        predictor_responses,
+        steady_state_covariances,
+    )
+    rng = np.random.default_rng(17)
+    for _ in range(12):
+        r, dt, tau = 10 ** rng.uniform(-9, -5), rng.uniform(0.003, 0.02), rng.uniform(0.01, 0.08)
+        qs = 10 ** rng.uniform(0, 2) * np.logspace(0.0, -12.0, 32)
+        freqs = np.geomspace(0.05, 0.5 / dt, 60)
+        covariances = steady_state_covariances(qs, r, dt)
+        responses = predictor_responses(qs, r, dt, tau, freqs)
+        for q, P, H in zip(qs, covariances, responses):
+            assert np.array_equal(P, _lone_covariance(q, r, dt))
+            K = P[:, 0] / (P[0, 0] + r)
+            A = (np.eye(3) - np.outer(K, [1.0, 0.0, 0.0])) @ _transition(dt)
+            z = np.exp(2j * np.pi * freqs * dt)
+            M = z[:, None, None] * np.eye(3) - A
+            X = np.linalg.solve(M, np.broadcast_to(K, (len(z), 3))[..., None])[..., 0] \
+                * z[:, None]
+            want = (X @ np.array([1.0, tau, 0.5 * tau * tau])) \
+                * np.exp(-2j * np.pi * freqs * tau)
+            assert np.array_equal(H, want)
+            assert np.array_equal(predictor_response(q, r, dt, tau, freqs), want)
