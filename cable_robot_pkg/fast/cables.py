@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import importlib
 import os
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -244,7 +244,7 @@ class CableSystem:
 _KERNELS: dict = {}
 
 
-def compiled_kernel(name: str, module: str = 'cable_kernel'):
+def compiled_kernel(name: str, module: str = 'cable_kernel') -> Callable | None:
     """The numba kernel ``name`` of ``cable_robot_pkg.fast.<module>``, or None for numpy
     (resolved again when ``PARAMOTION_BACKEND`` changes)."""
     env = os.environ.get('PARAMOTION_BACKEND')
