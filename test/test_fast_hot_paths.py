@@ -12,14 +12,18 @@ from cable_robot_pkg.fast.plant import FeedSupportPlant, make_client
 from cable_robot_pkg.fast.wind import WindModel
 
 
-def _plant_trajectory(cfg, backend, monkeypatch, wind_intensity=2.0, steps=300):
-    """Plant state along ``steps`` physics steps with random set-points, on ``backend``."""
+def _plant_trajectory(cfg, backend, monkeypatch, wind_intensity=2.0, steps=300,
+                      compile_first=False):
+    """Plant state along ``steps`` physics steps with random set-points, on ``backend``
+    (``compile_first``: after ``compile_step``, as the simulator node builds it)."""
     monkeypatch.setenv('PARAMOTION_BACKEND', backend)
     client = make_client()
     try:
         wind = None if wind_intensity is None else WindModel.from_config(
             cfg.raw['wind'], cfg.raw['trolley'], intensity=wind_intensity)
         pl = FeedSupportPlant(cfg, client, wind=wind)
+        if compile_first:
+            pl.compile_step()
         rng = np.random.default_rng(7)
         out = []
         for k in range(steps):
@@ -62,6 +66,47 @@ def test_compiled_plant_step_equals_the_numpy_step(config, wind, monkeypatch):
     assert np.all(np.isfinite(fast))
     assert np.ptp(fast[:, 0]) > 0.0                     # the trolley moved
     assert np.array_equal(fast, ref)
+
+
+def test_compiling_the_step_ahead_changes_nothing_of_the_run(monkeypatch):
+    """``compile_step`` (the simulator node's start-up call) throws its results away and
+    leaves the wind's generator alone: the run after it is the run without it, bit for bit."""
+    pytest.importorskip('numba')
+    from pathlib import Path
+
+    import cable_robot_pkg.fast as pkg
+    cfg = load_config(Path(pkg.__file__).parent / 'config' / 'fast.yaml')
+    ahead = _plant_trajectory(cfg, 'numba', monkeypatch, 2.0, steps=200, compile_first=True)
+    plain = _plant_trajectory(cfg, 'numba', monkeypatch, 2.0, steps=200)
+    assert np.ptp(ahead[:, 0]) > 0.0
+    assert np.array_equal(ahead, plain)
+
+
+def test_fast_nodes_compile_their_kernels_while_they_start(tmp_path):
+    """In a fresh process, building the simulator and the cable controller nodes compiles
+    (or loads) the plant step and the tension solver before any tick: their first physics
+    step and first tick, which the other side of a launch waits for, do not stall."""
+    pytest.importorskip('numba')
+    import subprocess
+    import sys
+    code = (
+        'import rclpy\n'
+        'from cable_robot_pkg.fast import bvls_kernel, cable_kernel\n'
+        'from cable_robot_pkg.fast.cable_pid_node import CablePidNode\n'
+        'from cable_robot_pkg.fast.sim_node import FastSimNode\n'
+        'ctx = rclpy.Context(); rclpy.init(context=ctx)\n'
+        'before = [len(f.signatures) for f in (cable_kernel.plant_step,\n'
+        '          cable_kernel.cable_length_rates, bvls_kernel.bvls)]\n'
+        'nodes = [FastSimNode(context=ctx), CablePidNode(context=ctx)]\n'
+        'after = [len(f.signatures) for f in (cable_kernel.plant_step,\n'
+        '         cable_kernel.cable_length_rates, bvls_kernel.bvls)]\n'
+        'print(before, after)\n'
+        'for n in nodes: n.destroy_node()\n'
+        'rclpy.shutdown(context=ctx)\n')
+    r = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                       timeout=300, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert r.stdout.strip().splitlines()[-1] == '[0, 0, 0] [1, 1, 1]', r.stdout
 
 
 def test_simulator_step_bookkeeping_equals_the_array_formulas():

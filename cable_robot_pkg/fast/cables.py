@@ -257,6 +257,14 @@ def compiled_kernel(name: str, module: str = 'cable_kernel') -> Callable | None:
     return hit[1]
 
 
+def compile_tension_solver() -> None:
+    """Compile :func:`bounded_least_squares`' kernel now (or load it from numba's disk cache)
+    by solving a 2 x 2 problem: the first solve of a process compiles it, which on a fresh
+    install takes tens of seconds. The cable controller node calls this while it starts, so
+    that its first tick, which the simulator may be waiting for, does not stall."""
+    bounded_least_squares(np.eye(2), np.ones(2), 0.0, 1.0)
+
+
 def bounded_least_squares(A: np.ndarray, b: np.ndarray, lower: float,
                           upper: float) -> np.ndarray:
     """``x`` minimising ``|A x - b|`` with ``lower <= x <= upper``: scipy's ``lsq_linear``

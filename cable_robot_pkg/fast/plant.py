@@ -348,32 +348,11 @@ class FeedSupportPlant:
             return
         cid = self._cid
         body = self.body
-        t = self.t
-        pos, q = pybullet.getBasePositionAndOrientation(body, physicsClientId=cid)
-        lin, ang = pybullet.getBaseVelocity(body, physicsClientId=cid)
-        R = np.array(pybullet.getMatrixFromQuaternion(q)).reshape(3, 3)
-        cables = self.cables
-        n = cables.n
+        args, pos = self._kernel_arguments()
+        kernel(*args)
+        out, slack = args[-2], args[-1]
+        n = self.cables.n
         wind = self.wind
-        wind_on = wind is not None and wind.U > 0.0
-        if wind_on:
-            block, j, block2, j2, frac = wind.turbulence_columns(t)
-            params = self._wind_params
-            params[6] = frac
-            params[7] = wind._gust(t)
-            r_cp = R @ wind.r_cp
-        else:
-            block = block2 = self._no_block
-            j = j2 = 0
-            params = r_cp = self._wind_params
-        out = np.empty(27 + 4 * n)
-        slack = np.empty(n, bool)
-        kernel(self.winch_cmd, self.winch_rate_cmd, t - self.winch_cmd_time,
-               self.winch_speed * self.dt, self.dt, self.unstretched, cables.attach @ R.T,
-               cables.anchors, cables.anchor_mask, np.array(pos), np.array(lin),
-               np.array(ang), cables.EA, cables.damping, wind_on, params, block, j, block2,
-               j2, r_cp, self.leg_cmd, self.leg_rate_cmd, t - self.leg_cmd_time,
-               self.geom.leg_min, self.geom.leg_max, self.nominal_lengths, out, slack)
         self.last_tensions = out[12:12 + n]
         self.last_lengths = out[12 + n:12 + 2 * n]
         self.unstretched = out[12 + 2 * n:12 + 3 * n]
@@ -391,6 +370,53 @@ class FeedSupportPlant:
         self._send_commands(out[legs:legs + 6], out[legs + 6:legs + 12])
         pybullet.stepSimulation(physicsClientId=cid)
         self.t += self.dt
+
+    def _kernel_arguments(self, with_wind: bool = True) -> tuple[tuple, tuple]:
+        """The compiled step's arguments at the current state (its two outputs, ``out`` and
+        ``slack``, last and new), and the trolley position read from PyBullet.
+        ``with_wind=False`` leaves the wind model alone (it draws gusts and turbulence
+        blocks from its generator as time goes on) and passes its placeholders, of the same
+        types."""
+        cid = self._cid
+        t = self.t
+        pos, q = pybullet.getBasePositionAndOrientation(self.body, physicsClientId=cid)
+        lin, ang = pybullet.getBaseVelocity(self.body, physicsClientId=cid)
+        R = np.array(pybullet.getMatrixFromQuaternion(q)).reshape(3, 3)
+        cables = self.cables
+        n = cables.n
+        wind = self.wind
+        wind_on = with_wind and wind is not None and wind.U > 0.0
+        if wind_on:
+            block, j, block2, j2, frac = wind.turbulence_columns(t)
+            params = self._wind_params
+            params[6] = frac
+            params[7] = wind._gust(t)
+            r_cp = R @ wind.r_cp
+        else:
+            block = block2 = self._no_block
+            j = j2 = 0
+            params = r_cp = self._wind_params
+        return (self.winch_cmd, self.winch_rate_cmd, t - self.winch_cmd_time,
+                self.winch_speed * self.dt, self.dt, self.unstretched, cables.attach @ R.T,
+                cables.anchors, cables.anchor_mask, np.array(pos), np.array(lin),
+                np.array(ang), cables.EA, cables.damping, wind_on, params, block, j, block2,
+                j2, r_cp, self.leg_cmd, self.leg_rate_cmd, t - self.leg_cmd_time,
+                self.geom.leg_min, self.geom.leg_max, self.nominal_lengths,
+                np.empty(27 + 4 * n), np.empty(n, bool)), pos
+
+    def compile_step(self) -> None:
+        """Compile the step's numba kernels now (or load them from numba's disk cache), by
+        calls whose results are thrown away: the plant's state does not change.
+
+        A process compiles them once, at the first call; on a fresh install that takes tens
+        of seconds. A simulator node calls this while it starts, before its controllers wait
+        on it, so that no physics step of a run stalls for the compiler. The wind model is
+        not asked (its generator's draws stay in the order of a run without this call).
+        """
+        if self._kernel is not None:
+            self._kernel(*self._kernel_arguments(with_wind=False)[0])
+        trolley = self.trolley_pose()
+        self.cables.length_rates(*trolley, *self.trolley_velocity())
 
     def _step_numpy(self) -> None:
         """:meth:`step` in numpy (cables through ``CableSystem.wrench``, wind through

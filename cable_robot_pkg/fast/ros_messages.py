@@ -8,7 +8,9 @@ import array
 import copy
 import math
 import os
-from collections.abc import Sequence
+import time
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 from builtin_interfaces.msg import Time
@@ -149,3 +151,15 @@ def check_config_param(path: str) -> str | None:
     except UserError as exc:
         return f"parameter 'config': {exc}"
     return None
+
+
+def log_compile_time(node: Any, what: str, compile_now: Callable[[], object]) -> None:
+    """Run ``compile_now`` (a node's numba kernels, compiled or loaded from numba's disk
+    cache) while the node starts, and say so when it took long: the first start after an
+    install compiles them, tens of seconds a node seems stuck without the line."""
+    start = time.monotonic()
+    compile_now()
+    took = time.monotonic() - start
+    if took > 1.0:
+        node.get_logger().info(f'compiled {what} in {took:.1f} s (numba keeps it in its disk '
+                               'cache: later starts load it)')

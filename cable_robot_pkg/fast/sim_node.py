@@ -28,6 +28,7 @@ from cable_robot_pkg.fast.ros_messages import (
     config_from_param,
     joint_state_msg,
     joint_vector,
+    log_compile_time,
     pose_msg,
     stamp_seconds,
 )
@@ -62,6 +63,7 @@ class FastSimNode(SimulationNode):
                                      intensity=p.wind, seed=seed)
         self.plant = FeedSupportPlant(self.cfg, self.bullet, wind=wind, dt=p.physics_dt,
                                       solver_iterations=p.solver_iterations or None)
+        log_compile_time(self, 'the plant step', self.plant.compile_step)
         self.cable_names = list(self.cfg.cables.names)
         self.slack_steps = np.zeros(len(self.cable_names), int)
         self.over_limit_steps = np.zeros(len(self.cable_names), int)
