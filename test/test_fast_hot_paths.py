@@ -82,31 +82,28 @@ def test_compiling_the_step_ahead_changes_nothing_of_the_run(monkeypatch):
     assert np.array_equal(ahead, plain)
 
 
-def test_fast_nodes_compile_their_kernels_while_they_start(tmp_path):
-    """In a fresh process, building the simulator and the cable controller nodes compiles
-    (or loads) the plant step and the tension solver before any tick: their first physics
-    step and first tick, which the other side of a launch waits for, do not stall."""
+def test_the_simulator_node_compiles_its_kernels_while_it_starts(tmp_path):
+    """In a fresh process, building the simulator node compiles (or loads) the plant step and
+    dL/dt before any tick: its first physics step, which the controllers of a launch wait
+    for, does not stall for the compiler."""
     pytest.importorskip('numba')
     import subprocess
     import sys
     code = (
         'import rclpy\n'
-        'from cable_robot_pkg.fast import bvls_kernel, cable_kernel\n'
-        'from cable_robot_pkg.fast.cable_pid_node import CablePidNode\n'
+        'from cable_robot_pkg.fast import cable_kernel\n'
         'from cable_robot_pkg.fast.sim_node import FastSimNode\n'
         'ctx = rclpy.Context(); rclpy.init(context=ctx)\n'
-        'before = [len(f.signatures) for f in (cable_kernel.plant_step,\n'
-        '          cable_kernel.cable_length_rates, bvls_kernel.bvls)]\n'
-        'nodes = [FastSimNode(context=ctx), CablePidNode(context=ctx)]\n'
-        'after = [len(f.signatures) for f in (cable_kernel.plant_step,\n'
-        '         cable_kernel.cable_length_rates, bvls_kernel.bvls)]\n'
-        'print(before, after)\n'
-        'for n in nodes: n.destroy_node()\n'
+        'kernels = (cable_kernel.plant_step, cable_kernel.cable_length_rates)\n'
+        'before = [len(f.signatures) for f in kernels]\n'
+        'node = FastSimNode(context=ctx)\n'
+        'print(before, [len(f.signatures) for f in kernels])\n'
+        'node.destroy_node()\n'
         'rclpy.shutdown(context=ctx)\n')
     r = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
                        timeout=300, cwd=tmp_path)
     assert r.returncode == 0, r.stderr[-2000:]
-    assert r.stdout.strip().splitlines()[-1] == '[0, 0, 0] [1, 1, 1]', r.stdout
+    assert r.stdout.strip().splitlines()[-1] == '[0, 0] [1, 1]', r.stdout
 
 
 def test_simulator_step_bookkeeping_equals_the_array_formulas():
@@ -248,55 +245,6 @@ def test_kalman_extrapolation_and_leg_clip_equal_the_formulas():
         assert clipped == want and ctl.clip_count == count + want
         assert np.array_equal(got, np.clip(lengths, ctl.lo, ctl.hi), equal_nan=True)
         assert got is not lengths
-
-
-def test_compiled_bvls_equals_scipy_lsq_linear():
-    """``bvls_kernel.bvls`` against scipy's ``lsq_linear(method='bvls')`` on random boxed
-    problems (tall, wide, solutions inside and on the bounds): 1e-12 relative."""
-    pytest.importorskip('numba')
-    from scipy.optimize import lsq_linear
-
-    from cable_robot_pkg.fast.bvls_kernel import bvls
-    rng = np.random.default_rng(0)
-    on_bound = 0
-    for _ in range(400):
-        m, n = rng.integers(3, 20), rng.integers(2, 12)
-        A, b = rng.normal(size=(m, n)), 3.0 * rng.normal(size=m)
-        lo = rng.normal(size=n) - 0.5
-        hi = lo + rng.uniform(0.1, 2.0, n)
-        want = lsq_linear(A, b, bounds=(lo, hi), method='bvls').x
-        got = bvls(A, b, lo, hi)
-        assert np.abs(got - want).max() <= 1e-12 * max(1.0, np.abs(want).max())
-        on_bound += int(np.sum((got == lo) | (got == hi)))
-    assert on_bound > 100
-
-
-@pytest.mark.parametrize('backend', ['numba', 'numpy'])
-def test_tension_distribution_on_both_backends_equals_scipy(backend, monkeypatch):
-    """The cable controller's tension plans (``FastConfig.tension_targets``) along poses
-    where the bounded solve is needed: the compiled BVLS and scipy's give the same tensions
-    (1e-12 relative)."""
-    pytest.importorskip(backend)
-    from scipy.optimize import lsq_linear
-
-    import cable_robot_pkg.fast.cables as cables_module
-    monkeypatch.setenv('PARAMOTION_BACKEND', backend)
-    cfg = load_config()
-    calls = []
-
-    def scipy_bvls(A, b, lower, upper):
-        calls.append(1)
-        return lsq_linear(A, b, bounds=(lower, upper), method='bvls').x
-    rng = np.random.default_rng(3)
-    for k in range(60):
-        feed_p, feed_R = cfg.track.pose(0.37 * k)
-        trolley_p = cfg.chain.coarse_targets(feed_p, feed_R)[0] + rng.normal(0.0, 0.05, 3)
-        got = cfg.tension_targets(trolley_p, feed_R)
-        with monkeypatch.context() as m:
-            m.setattr(cables_module, 'bounded_least_squares', scipy_bvls)
-            want = cfg.tension_targets(trolley_p, feed_R)
-        assert np.abs(got - want).max() <= 1e-12 * np.abs(want).max()
-    assert len(calls) > 10          # the bounded solve was exercised
 
 
 def test_rotation_helpers_give_the_plain_formulas():

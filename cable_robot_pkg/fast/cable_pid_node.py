@@ -25,7 +25,6 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from sensor_msgs.msg import JointState
 
-from cable_robot_pkg.fast.cables import compile_tension_solver
 from cable_robot_pkg.fast.configuration import parse_without
 from cable_robot_pkg.fast.pid import CoarseController
 from cable_robot_pkg.fast.ros_messages import (
@@ -35,7 +34,6 @@ from cable_robot_pkg.fast.ros_messages import (
     config_from_param,
     joint_state_msg,
     joint_vector,
-    log_compile_time,
     pose_from_msg,
     pose_msg,
 )
@@ -75,7 +73,6 @@ class CablePidNode(ParamotionNode):
         self.dt = 1.0 / self.params.rate
         open_loop = 'tracker_feedback' in parse_without(self.params.without, "parameter 'without'")
         self.ctl = CoarseController(self.cfg, self.dt, open_loop)
-        log_compile_time(self, 'the tension solver', compile_tension_solver)
         self.winches = self.ctl.winches
         self.names = list(self.cfg.cables.names)
         self.target = None

@@ -257,24 +257,13 @@ def compiled_kernel(name: str, module: str = 'cable_kernel') -> Callable | None:
     return hit[1]
 
 
-def compile_tension_solver() -> None:
-    """Compile :func:`bounded_least_squares`' kernel now (or load it from numba's disk cache)
-    by solving a 2 x 2 problem: the first solve of a process compiles it, which on a fresh
-    install takes tens of seconds. The cable controller node calls this while it starts, so
-    that its first tick, which the simulator may be waiting for, does not stall."""
-    bounded_least_squares(np.eye(2), np.ones(2), 0.0, 1.0)
-
-
 def bounded_least_squares(A: np.ndarray, b: np.ndarray, lower: float,
                           upper: float) -> np.ndarray:
     """``x`` minimising ``|A x - b|`` with ``lower <= x <= upper``: scipy's ``lsq_linear``
-    with ``method='bvls'``, compiled (:mod:`cable_robot_pkg.fast.bvls_kernel`) with numba."""
-    kernel = compiled_kernel('bvls', 'bvls_kernel')
-    if kernel is None:
-        return lsq_linear(A, b, bounds=(lower, upper), method='bvls').x
-    n = A.shape[1]
-    return kernel(np.ascontiguousarray(A, float), np.ascontiguousarray(b, float),
-                  np.full(n, float(lower)), np.full(n, float(upper)))
+    with ``method='bvls'``. It stays scipy's: a numba port saves about 0.02 CPU s per sim s
+    in the cable controller but takes 20-30 s to compile in every FAST process, each of which
+    checks its config's tension plans while it starts (docs/performance.md)."""
+    return lsq_linear(A, b, bounds=(lower, upper), method='bvls').x
 
 
 def _cross(a, b):
