@@ -22,7 +22,6 @@ then ``L0 = EA L / (EA + T)``.
 """
 from __future__ import annotations
 
-import importlib
 import os
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
@@ -244,15 +243,16 @@ class CableSystem:
 _KERNELS: dict = {}
 
 
-def compiled_kernel(name: str, module: str = 'cable_kernel') -> Callable | None:
-    """The numba kernel ``name`` of ``cable_robot_pkg.fast.<module>``, or None for numpy
-    (resolved again when ``PARAMOTION_BACKEND`` changes)."""
+def compiled_kernel(name: str) -> Callable | None:
+    """The numba kernel ``name`` of :mod:`cable_robot_pkg.fast.cable_kernel`, or None for
+    numpy (resolved again when ``PARAMOTION_BACKEND`` changes)."""
     env = os.environ.get('PARAMOTION_BACKEND')
     hit = _KERNELS.get(name)
     if hit is None or hit[0] != env:
         kernel = None
         if resolve_backend() == 'numba':
-            kernel = getattr(importlib.import_module(f'cable_robot_pkg.fast.{module}'), name)
+            from cable_robot_pkg.fast import cable_kernel
+            kernel = getattr(cable_kernel, name)
         hit = _KERNELS[name] = (env, kernel)
     return hit[1]
 

@@ -408,9 +408,10 @@ class FeedSupportPlant:
         """Compile the step's numba kernels now (or load them from numba's disk cache), by
         calls whose results are thrown away: the plant's state does not change.
 
-        A process compiles them once, at the first call; on a fresh install that takes tens
-        of seconds. A simulator node calls this while it starts, before its controllers wait
-        on it, so that no physics step of a run stalls for the compiler. The wind model is
+        A process compiles them at the first call, or loads them from the cache; from an
+        empty cache that takes some seconds. A simulator node calls this while it starts,
+        before its controllers wait on it, so that no physics step of a run stalls for the
+        compiler. The wind model is
         not asked (its generator's draws stay in the order of a run without this call).
         """
         if self._kernel is not None:

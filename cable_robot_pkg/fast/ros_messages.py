@@ -156,7 +156,7 @@ def check_config_param(path: str) -> str | None:
 def log_compile_time(node: Any, what: str, compile_now: Callable[[], object]) -> None:
     """Run ``compile_now`` (a node's numba kernels, compiled or loaded from numba's disk
     cache) while the node starts, and say so when it took long: the first start after an
-    install compiles them, tens of seconds a node seems stuck without the line."""
+    install compiles them, seconds in which the node would seem stuck without the line."""
     start = time.monotonic()
     compile_now()
     took = time.monotonic() - start
