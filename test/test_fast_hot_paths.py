@@ -334,3 +334,172 @@ def test_stacked_predictor_responses_equal_lone_ones():
                 * np.exp(-2j * np.pi * freqs * tau)
             assert np.array_equal(H, want)
             assert np.array_equal(predictor_response(q, r, dt, tau, freqs), want)
+
+
+def test_the_isolation_node_compiles_its_kernels_while_it_starts(tmp_path):
+    """In a fresh process, building the isolation controller node compiles (or loads) the
+    forward kinematics kernel of its base views before any message: the first tracker frame
+    does not stall for about a second while a launched simulator waits for the legs."""
+    pytest.importorskip('numba')
+    import subprocess
+    import sys
+    code = (
+        'import rclpy\n'
+        'from paramotion import gough_stewart_numba\n'
+        'from cable_robot_pkg.fast.isolation_node import IsolationNode\n'
+        'ctx = rclpy.Context(); rclpy.init(context=ctx)\n'
+        'kernel = gough_stewart_numba.fk_single_kernel\n'
+        'before = len(kernel.signatures)\n'
+        'node = IsolationNode(context=ctx)\n'
+        'print(before, len(kernel.signatures))\n'
+        'node.destroy_node()\n'
+        'rclpy.shutdown(context=ctx)\n')
+    r = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                       timeout=300, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert r.stdout.strip().splitlines()[-1] == '0 1', r.stdout
+
+
+def _isolation_run(cfg, warm_up, steps=400):
+    """Leg commands of a ``predictive`` controller fed a synthetic vibrating base, its feed
+    and trolley views and encoders (the frames 20 ms late), with or without
+    ``compile_kernels`` first."""
+    from cable_robot_pkg.fast.isolation import IsolationController
+    from paramotion.rotations import matrix_from_rotvec
+    ctl = IsolationController.from_config(cfg, mode='predictive')
+    if warm_up:
+        ctl.compile_kernels()
+    p_nom, R_nom = cfg.chain.nominal_relative_pose()
+    out = []
+    for k in range(steps):
+        t = 0.005 * k
+        stamp = t - 0.02
+        ctl.add_leg_state(t, ctl.nominal_lengths + 1e-3 * np.sin(3.0 * t + np.arange(6)))
+        ctl.add_hinge_state(t, [0.01 * np.sin(t), 0.0])
+        if k % 2 == 0:
+            ctl.set_target(t, *cfg.track.pose(t))
+        if stamp >= 0.0:
+            p_b = 0.01 * np.array([np.sin(7.0 * stamp), np.cos(5.0 * stamp), 0.0])
+            R_b = matrix_from_rotvec([0.002 * np.sin(6.0 * stamp), 0.0, 0.001])
+            ctl.add_base(t, stamp, p_b, R_b)
+            ctl.add_feed(t, stamp, p_b + R_b @ p_nom, R_b @ R_nom)
+        cmd = ctl.update(t)
+        out.append(np.concatenate([cmd.lengths, cmd.rates, [cmd.holding]]))
+    return np.array(out)
+
+
+def test_compiling_the_isolation_kernels_ahead_changes_nothing():
+    """``IsolationController.compile_kernels`` (the node's start-up call) throws its solve
+    away: the controller's commands after it are those without it, bit for bit."""
+    cfg = load_config()
+    ahead, plain = _isolation_run(cfg, True), _isolation_run(cfg, False)
+    assert np.ptp(ahead[:, 0]) > 0.0 and not ahead[-1, -1]     # the legs moved, not holding
+    assert np.array_equal(ahead, plain)
+
+
+def test_kalman_covariances_kept_per_input_equal_the_formulas():
+    """``ConstantAccelerationKF.update`` keeps each covariance step's result by its input
+    (covariance, step, noise): state and covariance equal the plain Kalman formulas bit for
+    bit, along steps that revisit covariances, views sharing a stamp, a change of the process
+    noise (a re-schedule) and a reset; the kept arrays are read-only."""
+    from cable_robot_pkg.fast.isolation import (
+        ConstantAccelerationKF,
+        _process_noise,
+        _transition,
+    )
+    rng = np.random.default_rng(29)
+    kf = ConstantAccelerationKF(3, 20.0, 0.001)
+    kf.reset(0.0, rng.normal(size=3))
+    x, P, t = kf.x.copy(), kf.P.copy(), 0.0
+    hits = 0
+    clock = 0.0
+    for k in range(1, 1500):
+        if k == 700:
+            kf.q = 3.0
+        if k == 1100:
+            z = rng.normal(size=3)
+            kf.reset(t, z)
+            x, P = kf.x.copy(), kf.P.copy()
+        for _ in range(10 if k in (400, 900) else 5):   # stamps as the simulator's clock
+            clock += 0.001                                # makes them, two frames dropped
+        stamp = clock
+        for _ in range(1 + (k % 3 != 0) * 2):          # most frames seen three times
+            z = rng.normal(size=3)
+            dt = stamp - t
+            if dt > 0:
+                F, Q = _transition(dt), _process_noise(kf.q, dt)
+                x, P, t = F @ x, F @ P @ F.T + Q, stamp
+            before = len(kf._fused) + len(kf._predicted)
+            kf.update(stamp, z)
+            hits += len(kf._fused) + len(kf._predicted) == before
+            K = P[:, 0] / (P[0, 0] + kf.r)
+            x = x + np.outer(K, z - x[0])
+            P = P - np.outer(K, P[0])
+            assert np.array_equal(kf.x, x) and np.array_equal(kf.P, P)
+    assert hits > 600                                  # the kept results were used
+    with pytest.raises(ValueError):
+        kf.P[0, 0] = 1.0
+
+
+def test_paired_relative_poses_equal_two_lone_evaluations():
+    """``IsolationController._relative_pair`` (the poses at ``t`` and ``t + h`` as stacks)
+    and the stacked inverse kinematics equal the desired pose relative to the compensated
+    base written out for each time alone (trim, reaction-free base, ``(I - J K)^-1``), bit
+    for bit, in each mode and with the trim turned."""
+    from cable_robot_pkg.fast.isolation import IsolationController
+    from paramotion.gough_stewart import inverse_kinematics
+    from paramotion.rotations import matrix_from_rotvec, rotvec_from_matrix
+    cfg = load_config()
+    rng = np.random.default_rng(31)
+    for mode in ('predictive', 'cheng', 'predictive'):
+        ctl = IsolationController.from_config(cfg, mode=mode)
+        ctl.trim = rng.normal(0.0, 1e-3, 6)
+        for k in range(60):
+            stamp = 0.005 * k
+            ctl.add_base(stamp + 0.02, stamp, rng.normal(0.0, 1e-2, 3),
+                         matrix_from_rotvec(rng.normal(0.0, 1e-2, 3)))
+        p_nom, R_nom = cfg.chain.nominal_relative_pose()
+        for _ in range(20):
+            t, h = 0.3 + rng.uniform(0.0, 0.01), 0.002
+            P = p_nom + rng.normal(0.0, 0.01, (2, 3))
+            R = np.array([matrix_from_rotvec(rng.normal(0.0, 0.02, 3)) @ R_nom
+                          for _ in range(2)])
+            want = []
+            for j, tj in enumerate((t, t + h)):
+                p_b, R_b = ctl._base_command(tj)
+                p_d = P[j] + ctl.trim[:3]
+                R_d = matrix_from_rotvec(ctl.trim[3:]) @ R[j]
+                rel_p, rel_R = R_b.T @ (p_d - p_b), R_b.T @ R_d
+                if ctl.reaction is not None:
+                    e0 = np.concatenate([rel_p - ctl.nominal_p,
+                                         rotvec_from_matrix(rel_R @ ctl.nominal_R.T)])
+                    e = ctl.reaction[1] @ e0
+                    rel_p = ctl.nominal_p + e[:3]
+                    rel_R = matrix_from_rotvec(e[3:]) @ ctl.nominal_R
+                want.append((rel_p, rel_R, inverse_kinematics(ctl.geometry, rel_p, rel_R)))
+            rel_p, rel_R = ctl._relative_pair(t, h, P, R)
+            lengths = inverse_kinematics(ctl.geometry, rel_p, rel_R)
+            for j in range(2):
+                assert np.array_equal(rel_p[j], want[j][0])
+                assert np.array_equal(rel_R[j], want[j][1])
+                assert np.array_equal(lengths[j], want[j][2])
+        ctl.trim[3:] += 1e-3
+
+
+def test_batched_rotation_helpers_equal_the_single_ones():
+    """``matrices_from_rotvecs`` and ``rotvecs_from_matrices`` give, row for row, what
+    ``matrix_from_rotvec`` and ``rotvec_from_matrix`` give, bit for bit, including the small
+    angle and near-pi branches."""
+    from paramotion.rotations import (
+        matrices_from_rotvecs,
+        matrix_from_rotvec,
+        rotvec_from_matrix,
+        rotvecs_from_matrices,
+    )
+    rng = np.random.default_rng(37)
+    v = rng.normal(size=(500, 3)) * 10.0 ** rng.uniform(-14, 0.5, (500, 1))
+    v[:20] *= np.pi / np.linalg.norm(v[:20], axis=1, keepdims=True)     # half turns
+    R = matrices_from_rotvecs(v)
+    assert R.shape == (500, 3, 3)
+    assert np.array_equal(R, np.array([matrix_from_rotvec(x) for x in v]))
+    assert np.array_equal(rotvecs_from_matrices(R), np.array([rotvec_from_matrix(m) for m in R]))

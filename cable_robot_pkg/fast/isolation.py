@@ -72,7 +72,12 @@ from paramotion.gough_stewart import (
     forward_kinematics,
     inverse_kinematics,
 )
-from paramotion.rotations import matrix_from_rotvec, rotvec_from_matrix
+from paramotion.rotations import (
+    matrices_from_rotvecs,
+    matrix_from_rotvec,
+    rotvec_from_matrix,
+    rotvecs_from_matrices,
+)
 
 if TYPE_CHECKING:
     from cable_robot_pkg.fast.configuration import FastConfig
@@ -222,6 +227,17 @@ def schedule_predictor(q_max: float, r: float, dt: float, horizon: float, peak_m
     return best[1:]
 
 
+def _remember(cache, key, value, size=512):
+    """``value`` stored in ``cache`` under ``key`` (the cache emptied when full); its arrays
+    are made read-only, since later lookups hand out the same objects."""
+    if len(cache) >= size:
+        cache.clear()
+    for a in value if isinstance(value, tuple) else (value,):
+        a.setflags(write=False)
+    cache[key] = value
+    return value
+
+
 class ConstantAccelerationKF:
     """Kalman filter for m independent coordinates sharing one [p, v, a] model and noise."""
 
@@ -234,6 +250,12 @@ class ConstantAccelerationKF:
         self.t = None
         self._models = {}         # (dt, q) -> (F, Q), see _model
         self._extrapolations = {}  # (dt, order) -> F, see predict
+        # The covariance does not depend on the measurements: from a given P, a step of dt
+        # with noise q and a fused measurement of variance r always give the same P and
+        # gain. Steps on the tracker's frame grid revisit the same covariances (about two
+        # updates in three), so each step's result is kept by its input (see update).
+        self._predicted = {}      # (P bytes, dt, q) -> F P F^T + Q
+        self._fused = {}          # (P bytes, r) -> (gain column K[:, None], P after fusing)
 
     def reset(self, t: float, z: ArrayLike) -> None:
         """Start at measurement ``z`` (m,) at time ``t`` with unknown rates."""
@@ -245,16 +267,24 @@ class ConstantAccelerationKF:
     def update(self, t: float, z: ArrayLike) -> None:
         """Predict to ``t`` and fuse measurement ``z`` (m,)."""
         dt = t - self.t
+        P = self.P
         if dt > 0:
             F, Q = self._model(dt)
             self.x = F @ self.x
-            self.P = F @ self.P @ F.T + Q
+            key = (P.tobytes(), dt, self.q)
+            P = self._predicted.get(key)
+            if P is None:
+                P = _remember(self._predicted, key, F @ self.P @ F.T + Q)
             self.t = t
-        S = self.P[0, 0] + self.r
-        K = self.P[:, 0] / S
-        Kc = K[:, None]          # np.outer(K, v) is K[:, None] * v[None, :]
+        key = (P.tobytes(), self.r)
+        fused = self._fused.get(key)
+        if fused is None:
+            S = P[0, 0] + self.r
+            K = P[:, 0] / S
+            Kc = K[:, None]          # np.outer(K, v) is K[:, None] * v[None, :]
+            fused = _remember(self._fused, key, (Kc, P - Kc * P[0][None, :]))
+        Kc, self.P = fused
         self.x = self.x + Kc * (np.asarray(z) - self.x[0])[None, :]
-        self.P = self.P - Kc * self.P[0][None, :]
 
     def _model(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """Transition and process noise for a step of ``dt``, kept per (dt, q): measurements
@@ -566,6 +596,13 @@ class PosePredictor:
         R = self.R_ref @ matrix_from_rotvec(xr[0])
         return xp[0], R, xp[1], self.R_ref @ xr[1]
 
+    def predict_pose(self, t: float, order: int = 2) -> tuple[np.ndarray, np.ndarray]:
+        """(position, rotation) of :meth:`predict`, without the rates the controller does not
+        use (the same floats, two products fewer)."""
+        xp = self.pos.predict(t, order)
+        xr = self.rot.predict(t, order)
+        return xp[0], self.R_ref @ matrix_from_rotvec(xr[0])
+
 
 class TargetHistory:
     """Recent feed targets by time, so that a delayed measurement is compared with the target
@@ -864,6 +901,19 @@ class IsolationController:
                    wiener_taps=iso['wiener_taps'], wiener_spacing=iso['wiener_spacing'],
                    wiener_window=iso['wiener_window'], reaction=reaction_model(cfg))
 
+    def compile_kernels(self) -> None:
+        """Compile, or load from numba's disk cache, the forward kinematics kernel that the
+        base views and the reaction-free base use, by one solve at the nominal pose whose
+        result is thrown away (no state of the controller changes). A node calls it while it
+        starts: otherwise the first tracker frame pays for it (about a second of CPU with a
+        warm cache, more from an empty one) and a launched simulator waits for the answer."""
+        if self.fuse or self.reaction is not None:
+            try:
+                forward_kinematics(self.geometry, self.nominal_lengths, self.nominal_p,
+                                   self.nominal_R)
+            except (SingularPoseError, UnreachablePoseError, ValueError):
+                pass
+
     # ------------------------------------------------------------------ inputs
     def set_target(self, t: float, position: ArrayLike, rotation: ArrayLike) -> None:
         """New feed target (map frame) valid at time ``t``."""
@@ -1141,16 +1191,18 @@ class IsolationController:
         if x is not None:          # its peak gain is bounded in the fit
             self.loop_peak = self.wiener.peak()
             return x[:3], self.wiener_ref @ matrix_from_rotvec(x[3:])
-        p_b, R_b, _, _ = self.base.predict(t, order=2 if self.mode == 'predictive' else 1)
-        if self.mode != 'predictive' or self.gain >= 1.0 or self.slow is None:
+        p_b, R_b = self.base.predict_pose(t, order=2 if self.mode == 'predictive' else 1)
+        if self.mode != 'predictive' or self.slow is None:
+            return p_b, R_b
+        g_p, g_r = self.gains.tolist()
+        if g_p >= 1.0 and g_r >= 1.0:          # self.gain >= 1.0, NaN included
             return p_b, R_b
         _, p_s, R_s = self.slow
-        g_p, g_r = self.gains
         dphi = rotvec_from_matrix(R_s.T @ R_b)
         return p_s + g_p * (p_b - p_s), R_s @ matrix_from_rotvec(g_r * dphi)
 
     def _update_slow(self, now):
-        p_b, R_b, _, _ = self.base.predict(now)
+        p_b, R_b = self.base.predict_pose(now)
         if self.slow is None:
             self.slow = (now, p_b, R_b)
             return
@@ -1175,6 +1227,29 @@ class IsolationController:
                                  rotvec_from_matrix(rel_R @ self.nominal_R.T)])
             e = self.reaction[1] @ e0
             rel_p, rel_R = self.nominal_p + e[:3], matrix_from_rotvec(e[3:]) @ self.nominal_R
+        return rel_p, rel_R
+
+    def _relative_pair(self, t, h, targets_p, targets_R):
+        """:meth:`_relative` at ``t`` and ``t + h`` for the target poses ``targets_p`` (2, 3)
+        and ``targets_R`` (2, 3, 3), as stacks (2, 3) and (2, 3, 3): the base commands one
+        after the other (the predictors keep state), the rest on both at once (numpy passes
+        each matrix of a stack through the BLAS call a lone one takes: the same floats)."""
+        p_b0, R_b0 = self._base_command(t)
+        p_b1, R_b1 = self._base_command(t + h)
+        p_b, R_b = np.array([p_b0, p_b1]), np.array([R_b0, R_b1])
+        p_d = targets_p + self.trim[:3]
+        trim_rotvec = self.trim[3:].tolist()
+        if self._trim_R[0] != trim_rotvec:      # the trim changes with feed frames only
+            self._trim_R = (trim_rotvec, matrix_from_rotvec(trim_rotvec))
+        R_d = self._trim_R[1] @ targets_R
+        R_bT = np.swapaxes(R_b, 1, 2)
+        rel_p, rel_R = (R_bT @ (p_d - p_b)[:, :, None])[:, :, 0], R_bT @ R_d
+        if self.reaction is not None:
+            e0 = np.concatenate([rel_p - self.nominal_p,
+                                 rotvecs_from_matrices(rel_R @ self.nominal_R.T)], axis=1)
+            e = (self.reaction[1] @ e0[:, :, None])[:, :, 0]
+            rel_p, rel_R = self.nominal_p + e[:, :3], \
+                matrices_from_rotvecs(e[:, 3:]) @ self.nominal_R
         return rel_p, rel_R
 
     def _clip(self, lengths):
@@ -1222,8 +1297,8 @@ class IsolationController:
             R0 = matrix_from_rotvec(w * age) @ latest[2]
             p1 = p0 + v * h
             R1 = matrix_from_rotvec(w * h) @ R0
-            l0 = inverse_kinematics(self.geometry, *self._relative(t0, p0, R0))
-            l1 = inverse_kinematics(self.geometry, *self._relative(t0 + h, p1, R1))
+            l0, l1 = inverse_kinematics(self.geometry, *self._relative_pair(
+                t0, h, np.array([p0, p1]), np.array([R0, R1])))
             lengths, clipped = self._clip(l0)
             rates = np.where((l0 < self.lo) | (l0 > self.hi), 0.0, (l1 - l0) / h)
         self.command = LegCommand(lengths, rates, clipped, False)

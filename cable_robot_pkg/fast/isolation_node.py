@@ -36,6 +36,7 @@ from cable_robot_pkg.fast.ros_messages import (
     config_from_param,
     joint_state_msg,
     joint_vector,
+    log_compile_time,
     pose_from_msg,
     stamp_seconds,
 )
@@ -67,6 +68,7 @@ class IsolationNode(ParamotionNode):
         self.without = parse_without(self.params.without, "parameter 'without'")
         self.enabled = self.params.enabled and 'isolation' not in self.without
         self.ctl = IsolationController.from_config(self.cfg, mode=mode, without=self.without)
+        log_compile_time(self, 'the forward kinematics', self.ctl.compile_kernels)
         self.update_times = []
         self.hold_events = 0
         self.recoveries = 0
