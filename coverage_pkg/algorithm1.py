@@ -94,6 +94,9 @@ class PaperConfig:
     #                                 coverage on held-out worlds: not safe)
     cusp_detour: bool = False       # ours: a narrow node whose cusp the boundary circuit
     #                                 senses is traced at once; the circuit resumes after
+    retrace_angle: float = 45.0     # deg, transit follows a traced GVD edge (a wall at
+    #                                 D = delta) by the GVD (boundary) law where the edge's
+    #                                 tangent is this near the way ahead
 
     def detector_range(self) -> float:
         """Range of the detector used for coverage: delta."""
@@ -159,20 +162,23 @@ class PaperPlanner(EventSensing, CreateNode, MorseDecompCoverage, TraceGVD, Find
         self.route = []
         self.sweeps = 0
         self.D, self.mins, self.angles, self.ranges = math.inf, [], None, None
+        self.gvd_mins = []                         # the closest distinct obstacles
         self._prev_d, self._near_bearing, self._meet_cand = None, None, None
         self._hist, self.stuck_count, self.given_up = [], 0, []
         self.update_times = []
         self.last = {}                             # no decomposed map (the node's markers)
         self._cusp_dir = None                      # bearing into the narrow cell, this cusp
         self._cusp_dirs = {}                       # cusp (x, y) of an edge -> that bearing
-        self._on_gvd = False                       # this transit step follows a GVD edge
+        self._law = None                           # this transit step's control law:
+        #                                            'gvd' along a traced GVD edge,
+        #                                            'boundary' along a wall at D = delta
         self.gvd_trace = {}                        # points of traced GVD edges, by 1 m bucket
         self._gvd_last = None
 
     def on_odometry(self, t: float, x: float, y: float, yaw: float) -> None:
         """Robot pose in the odom frame at sim time t."""
         if all(math.isfinite(v) for v in (t, x, y, yaw)):
-            kind = 'gvd' if self.mode == 'transit' and self._on_gvd else self.mode
+            kind = self._law if self.mode == 'transit' and self._law else self.mode
             if self.pose is not None and kind:
                 step = math.dist(self.pose[:2], (x, y))
                 if kind == 'gvd' and self.mode == 'transit':
@@ -199,6 +205,7 @@ class PaperPlanner(EventSensing, CreateNode, MorseDecompCoverage, TraceGVD, Find
         self.ranges, self.angles = r, self.mount + self.pose[2]
         rr = np.where(np.isfinite(r), r, np.inf)
         self.mins = gvdmod.ring_minima(rr, self.angles)
+        self.gvd_mins = gvdmod.distinct_minima(rr, self.angles)
         prev, self.D = self.D, float(np.nanmin(r))
         self.paths.add(self.pose[0], self.pose[1], self.D)
         if self.mode == 'gvd' and (self._gvd_last is None or

@@ -55,6 +55,69 @@ def ring_minima(ranges: ArrayLike, angles: ArrayLike,
     return kept
 
 
+def one_surface(ranges: ArrayLike, angles: ArrayLike, m1: tuple[float, float],
+                m2: tuple[float, float], tol: float = 0.03) -> bool:
+    """The closest echoes ``m1`` and ``m2`` (range, bearing) are one obstacle's surface.
+
+    A GVD edge is equidistant to two obstacles whose distance gradients differ (Section
+    III). Between two closest obstacles the range over bearing rises to a maximum: a gap
+    between them, or a concave corner where two walls meet (whose bisector is a GVD edge).
+    Along one flat or convex surface the distance to its points has no interior maximum,
+    so two minima with no echo between them (the shorter way round) farther than the
+    farther of the two (plus ``tol``, the ring's noise) are one minimum seen through
+    several cones: a flat stretch of equal echoes, or two faces of a convex corner (a door
+    jamb). False when no echo lies between the two bearings or they are more than 150
+    degrees apart (the robot then stands between the two)."""
+    r = np.asarray(ranges, dtype=float)
+    a = np.asarray(angles, dtype=float)
+    (d1, a1), (d2, a2) = m1, m2
+    span = math.remainder(a2 - a1, 2 * math.pi)
+    if abs(span) > math.radians(150.0):
+        return False
+    rel = np.remainder(a - a1, 2 * math.pi) if span > 0 else np.remainder(a1 - a, 2 * math.pi)
+    between = (rel > 1e-6) & (rel < abs(span) - 1e-6)
+    if not between.any():
+        return False
+    rb = r[between]
+    return bool(np.all(np.isfinite(rb)) and rb.max() <= max(d1, d2) + tol)
+
+
+def distinct_minima(ranges: ArrayLike, angles: ArrayLike, tol: float = 0.03,
+                    min_separation: float = math.radians(30.0)) -> list[tuple[float, float]]:
+    """The closest distinct obstacles seen by a range ring, ``(range, bearing)`` nearest first.
+
+    Like :func:`ring_minima`, but a minimum is the whole run of neighbouring cones within
+    ``tol`` (the ring's noise) of it, placed at the run's middle bearing: a flat stretch of
+    equal echoes is one wall seen through several cones, its foot at their middle, not at
+    the run's first cone. Minima closer than ``min_separation`` are one, and a minimum on
+    one surface with a nearer kept one (:func:`one_surface`) is dropped."""
+    r = np.asarray(ranges, dtype=float)
+    a = np.asarray(angles, dtype=float)
+    rr = np.where(np.isfinite(r) & (r > 0), r, np.inf)
+    order = np.argsort(np.remainder(a, 2 * math.pi))
+    rs, as_ = rr[order], a[order]
+    n = len(rs)
+    mins = []
+    for k in range(n):
+        if not np.isfinite(rs[k]) or rs[k] > rs[k - 1] or rs[k] > rs[(k + 1) % n]:
+            continue
+        lo = hi = 0
+        while lo < n - 1 and rs[(k - lo - 1) % n] <= rs[k] + tol:
+            lo += 1
+        while hi < n - 1 - lo and rs[(k + hi + 1) % n] <= rs[k] + tol:
+            hi += 1
+        first = as_[(k - lo) % n]
+        span = np.remainder(as_[(k + hi) % n] - first, 2 * math.pi)
+        mins.append((float(rs[k]), float(math.remainder(first + span / 2, 2 * math.pi))))
+    mins.sort()
+    kept = []
+    for m in mins:
+        if all(abs(math.remainder(m[1] - k[1], 2 * math.pi)) >= min_separation and
+               not one_surface(r, a, k, m) for k in kept):
+            kept.append(m)
+    return kept
+
+
 def cusp_from_ring(xy: Sequence[float], ranges: ArrayLike, angles: ArrayLike, delta: float,
                    min_angle: float = math.radians(30.0), max_shift: float = 0.5,
                    other_tol: float = 0.1) -> tuple[float, float] | None:

@@ -147,19 +147,21 @@ def test_a_pillar_splits_the_hall_cell_at_its_left_side():
 @pytest.mark.parametrize('handover', [True, False], ids=['fig13_order', 'algorithm1_order'])
 def test_fig13_corridor_is_one_narrow_node_joined_by_both_of_its_cusps(handover):
     """Fig. 13: the corridor's GVD edge from Cs1 reaches the meet point Mp1 (14, 7), whose two
-    branches end at the right room's cusps Cs2 (19.73, 9) and Cs3 (19.73, 5). The branch
-    nearest the heading at Mp1 reaches Cs2 first, which creates the right room's vast node.
-    In Fig. 13's order (the default) the robot covers the room from Cs2; the room's circuit
-    senses Cs3 and creates a narrow node there, whose trace back towards Mp1 joins the
-    corridor's traced GVD edge: the two narrow nodes are one cell, the later one merges into
-    the corridor's node and its edge to the room is the corridor's. In Algorithm 1's order
-    (``handover`` off: the corridor traced whole first) both cusps create a vast node; the
-    room's circuit finds the two are one cell. Either way the graph: two vast nodes, one
-    corridor node with three edges, the corner nodes."""
+    branches end at the right room's cusps Cs2 (19.73, 5) and Cs3 (19.73, 9). In Fig. 13's
+    order (the default) the robot reaches the symmetric fork along +x and takes the
+    right-hand, lower branch ('The robot chooses the lower edge, and follows it ... to the
+    cusp point Cs2'); Cs2 creates the right room's vast node and the robot covers the room
+    from there; the room's circuit senses Cs3 ('Cp6, which is also the cusp point Cs3') and
+    creates a narrow node there, whose trace back towards Mp1 joins the corridor's traced
+    GVD edge: the two narrow nodes are one cell, the later one merges into the corridor's
+    node and its edge to the room is the corridor's. In Algorithm 1's order (``handover``
+    off: the corridor traced whole first) both cusps create a vast node; the room's circuit
+    from the one covered first, at Cs2, finds the two are one cell. Either way the graph: two
+    vast nodes, one corridor node with three edges, the corner nodes."""
     p = _run('fig13', handover)
     _check_graph(p, [('narrow', (1, 1)), ('vast', (2, 2)), ('narrow', (10, 2)),
                      ('narrow', (12 - S1, 7)), ('narrow', (10, 12)), ('narrow', (2, 12)),
-                     ('vast', (18 + S1, 9)), ('narrow', (20, 2)), ('narrow', (28, 2)),
+                     ('vast', (18 + S1, 5)), ('narrow', (20, 2)), ('narrow', (28, 2)),
                      ('narrow', (28, 12)), ('narrow', (20, 12))],
                  [(1, 0, (2, 2)), (1, 2, (10, 2)), (1, 3, (12 - S1, 7)), (1, 4, (10, 12)),
                   (1, 5, (2, 12)), (6, 3, (18 + S1, 9)), (6, 3, (18 + S1, 5)),

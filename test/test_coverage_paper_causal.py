@@ -206,14 +206,109 @@ def test_the_way_back_along_a_traced_gvd_edge_is_driven_by_the_gvd_control_law()
     p.mode, p.task = 'transit', {'after': 'gvd'}
     p.route = [(4.5, 0.7), (5.0, 0.7), (5.5, 0.7), (6.0, 0.7)]
     v = p._transit_step()
-    assert p._on_gvd and v[0] > 0.8 and v[1] < 0.0            # along +x, back to the centre
+    assert p._law == 'gvd' and v[0] > 0.8 and v[1] < 0.0     # along +x, back to the centre
     p.on_odometry(0.1, 4.1, 0.8, 0.0)
     assert p.segments[-1][0] == 'gvd'
     p.route = [(4.0, 1.1), (4.0, 3.0)]                         # the way turns off the edge
     p._transit_step()
-    assert not p._on_gvd
+    assert p._law is None
     p.on_odometry(0.2, 4.1, 1.0, 0.0)
     assert p.segments[-1][0] == 'transit'
+
+
+def test_the_way_back_along_a_wall_at_delta_is_driven_by_the_boundary_law():
+    """The path to x(n) along a wall at D = delta (a boundary circuit driven back) follows
+    the wall by the boundary law (recorded as boundary); where two obstacles are about
+    equally near (a corner) or the way turns off the wall, the robot drives straight to the
+    waypoint (transit)."""
+    p = _sensing(ROOM, (6.0, 2.0))
+    p.mode, p.task = 'transit', {'after': 'gvd'}
+    p.route = [(6.5, 2.0), (7.0, 2.0), (7.5, 2.0), (8.0, 2.0)]
+    v = p._transit_step()
+    assert p._law == 'boundary' and abs(v[0]) > 0.8 and v[0] > 0.0
+    p.on_odometry(0.1, 6.1, 2.0, 0.0)
+    assert p.segments[-1][0] == 'boundary'
+    p.route = [(6.1, 3.0), (6.1, 4.0)]                         # the way leaves the wall
+    p._transit_step()
+    assert p._law is None
+    q = _sensing(ROOM, (2.0, 2.0))                             # a corner: two walls at delta
+    q.mode, q.task = 'transit', {'after': 'gvd'}
+    q.route = [(2.5, 2.0), (3.0, 2.0), (3.5, 2.0)]
+    q._transit_step()
+    assert q._law is None
+
+
+# One sweep recorded just inside a dead-end stub 1.36 m wide off a corridor (gen_maze_305,
+# robot at (6.65, 7.59), 0.57 m from the stub's left wall x = 6.08, 0.18 m above the
+# corridor's upper wall, whose end at (6.08, 7.41) is the stub's left jamb): (world bearing
+# deg, range m). The left wall and its jamb give equal echoes (0.58 m, within the noise) in
+# the three cones at 156, 179 and 201 deg; the right wall is 0.81 m away at 359 deg.
+STUB_SWEEP = [(21, 0.81), (44, 1.02), (66, 1.61), (89, 3.78), (111, 1.25), (134, 0.75),
+              (156, 0.58), (179, 0.58), (201, 0.58), (224, 1.94), (246, 1.6), (269, 4.4),
+              (291, 1.7), (314, 1.81), (336, 2.93), (359, 0.81)]
+
+
+def test_a_trace_entering_a_stub_beside_its_jamb_follows_the_stubs_two_walls():
+    """The closest distinct obstacles are the stub's two walls (left and right), not two
+    minima on the left wall and its jamb, 45 degrees apart: with those the GVD tangent turns
+    across the stub, and the trace flipped back into the corridor, leaving the stub
+    uncovered. The GVD tangent runs up the stub."""
+    from coverage_pkg.algorithm1 import PaperPlanner
+    from coverage_pkg.gvd import ring_minima
+    from coverage_pkg.sonar import SonarRing
+    ring = SonarRing()
+    p = PaperPlanner(PaperConfig(), ring.mount_angles(), ring.beam_width, ring.min_range,
+                     ring.max_range)
+    p.on_odometry(0.0, 6.65, 7.59, math.radians(21.0))
+    order = np.argsort((np.array([a for a, _ in STUB_SWEEP]) - 21.0) % 360)
+    p.on_sweep(0.0, np.array([r for _, r in STUB_SWEEP])[order])
+    bad = ring_minima(p.ranges, p.angles)[:2]                # one wall twice: the old pair
+    assert sorted(round(math.degrees(a)) % 360 for _, a in bad) == [156, 201]
+    (_, a1), (_, a2) = p.gvd_mins[:2]
+    sides = sorted(math.cos(a) for a in (a1, a2))
+    assert sides[0] < -0.95 and sides[1] > 0.95, [math.degrees(a) for a in (a1, a2)]
+    diff = np.array([math.cos(a1) - math.cos(a2), math.sin(a1) - math.sin(a2)])
+    tangent = np.array([-diff[1], diff[0]]) / np.linalg.norm(diff)
+    assert abs(tangent[1]) > 0.99                            # up (or down) the stub
+
+
+def test_closest_obstacles_one_surface_against_two():
+    """``distinct_minima``: a run of equal echoes on one wall is one minimum at the run's
+    middle; two minima on the faces of one convex corner are one obstacle; the two walls of
+    a concave corner (whose bisector is a GVD edge) and two walls across a gap stay two."""
+    from coverage_pkg.gvd import distinct_minima, one_surface
+    ang = np.radians(np.arange(16) * 22.5)
+    flat = np.full(16, 5.0)
+    flat[6:11] = [0.9, 0.58, 0.58, 0.58, 0.9]                # 157.5-202.5 deg: one wall
+    got = distinct_minima(flat, ang)
+    assert len(got) == 1 and abs(math.degrees(got[0][1]) % 360 - 180.0) < 1e-6
+    convex = np.full(16, 5.0)
+    convex[[2, 3, 4]] = [0.6, 0.55, 0.62]                    # two faces, the corner between
+    assert one_surface(convex, ang, (0.6, ang[2]), (0.62, ang[4]))
+    concave = np.full(16, 5.0)
+    concave[[2, 3, 4]] = [0.6, 0.85, 0.62]                   # the corner farther than both
+    assert not one_surface(concave, ang, (0.6, ang[2]), (0.62, ang[4]))
+    assert len(distinct_minima(concave, ang)) == 2
+
+
+def test_a_cone_meeting_an_obstacle_between_two_gaps_keeps_both_branches():
+    """At a meet point beside a door (gen_mixed_400's corridor junction), the door's gap and
+    the corridor going on are two GVD edges although their bearings are 45 degrees apart: a
+    cone between them meets an obstacle within delta, so both are branches (two maxima within
+    45 degrees with no such cone between are one gap)."""
+    p = _sensing(ROOM, (6.0, 4.0))
+    deg = np.array([20, 42, 65, 87, 110, 132, 155, 177, 200, 222, 245, 267, 290, 312, 335,
+                    357], dtype=float)
+    p.angles = np.radians(deg)
+    p.ranges = np.array([1.48, 0.85, 5.0, 5.0, 3.0, 5.0, 1.24, 4.13, 1.87, 1.1, 0.86, 0.8,
+                         0.83, 0.99, 1.59, 5.0])
+    out = sorted(round(math.degrees(b)) % 360 for b in p._free_bearings([math.radians(343)],
+                                                                       p.det))
+    assert 177 in out and any(60 <= b <= 135 for b in out), out
+    p.ranges[6] = 3.0                                        # no obstacle between: one gap
+    out = sorted(round(math.degrees(b)) % 360 for b in p._free_bearings([math.radians(343)],
+                                                                       p.det))
+    assert 177 not in out or not any(110 < b < 177 for b in out), out
 
 
 def test_a_cusp_within_a_step_of_a_known_one_on_another_gvd_edge_creates_its_own_node():

@@ -145,7 +145,7 @@ class FindUncoveredNode:
         GVD edge (narrow space, the two closest echoes equal, the edge's tangent along the
         way ahead), the robot follows that edge back by the GVD control law; elsewhere it
         drives straight to the next waypoint."""
-        self._on_gvd = False
+        self._law = None
         if len(self.route) > 1:               # passed: the nearest of the next waypoints
             near = min(range(min(len(self.route), 8)),
                        key=lambda i: math.dist(self.pose[:2], self.route[i]))
@@ -157,16 +157,48 @@ class FindUncoveredNode:
             return None
         v = self._retrace_velocity()
         if v is not None:
-            self._on_gvd = True
+            self._law = 'gvd'
+            return v
+        v = self._wall_velocity()
+        if v is not None:
+            self._law = 'boundary'
             return v
         return self._towards(self.route[0], self.cfg.max_speed)
+
+    def _goal_ahead(self):
+        """Unit vector to the route's point ~1 m ahead; None when that is within 0.5 m."""
+        goal = next((q for q in self.route if math.dist(q, self.pose[:2]) > 1.0),
+                    self.route[-1])
+        w = np.array(goal) - np.array(self.pose[:2])
+        return None if np.linalg.norm(w) < 0.5 else w / np.linalg.norm(w)
+
+    def _wall_velocity(self):
+        """Boundary following at D = delta towards the route's point ~1 m ahead, where the
+        way runs along a single closest obstacle at D = delta (a boundary circuit driven
+        back); None elsewhere."""
+        if len(self.mins) < 1 or len(self.route) < 2 or abs(self.D - self.det) > 0.15:
+            return None
+        d, a = self.mins[0]
+        if len(self.mins) > 1 and self.mins[1][0] - d < 2 * self.cfg.event_tolerance:
+            return None                        # two closest obstacles: a corner, a cusp
+        w = self._goal_ahead()
+        if w is None:
+            return None
+        nrm = np.array([math.cos(a), math.sin(a)])
+        tang = np.array([-nrm[1], nrm[0]])
+        if tang @ w < 0:
+            tang = -tang
+        if tang @ w < math.cos(math.radians(self.cfg.retrace_angle)):
+            return None
+        v = tang * self.cfg.max_speed + np.clip(2.0 * (d - self.det), -1.0, 1.0) * nrm
+        return v if v @ w >= 0.7 * self.cfg.max_speed else None
 
     def _retrace_velocity(self):
         """GVD following towards the route's point ~1 m ahead; None off the GVD, or where
         the edge's tangent does not lead there (a junction, a turn of the way)."""
-        if self.D > self.det or len(self.mins) < 2 or len(self.route) < 2:
+        if self.D > self.det or len(self.gvd_mins) < 2 or len(self.route) < 2:
             return None
-        (d1, a1), (d2, a2) = self.mins[:2]
+        (d1, a1), (d2, a2) = self.gvd_mins[:2]
         if abs(d1 - d2) > self.cfg.event_tolerance * 2:
             return None
         n1 = np.array([math.cos(a1), math.sin(a1)])
@@ -175,15 +207,12 @@ class FindUncoveredNode:
         if np.linalg.norm(diff) < 1.0:         # the two obstacles not on either side
             return None
         tang = np.array([-diff[1], diff[0]]) / np.linalg.norm(diff)
-        goal = next((q for q in self.route if math.dist(q, self.pose[:2]) > 1.0),
-                    self.route[-1])
-        w = np.array(goal) - np.array(self.pose[:2])
-        if np.linalg.norm(w) < 0.5:
+        w = self._goal_ahead()
+        if w is None:
             return None
-        w = w / np.linalg.norm(w)
         if tang @ w < 0:
             tang = -tang
-        if tang @ w < math.cos(math.radians(30)):
+        if tang @ w < math.cos(math.radians(self.cfg.retrace_angle)):
             return None
         v = tang * self.cfg.max_speed + diff / np.linalg.norm(diff) * (d1 - d2) * 2.0
         return v if v @ w >= 0.7 * self.cfg.max_speed else None

@@ -38,13 +38,13 @@ class TraceGVD:
         leave = self.task.setdefault('leave', self.pose[:2])
         if head is not None and math.dist(leave, self.pose[:2]) < 0.6:
             return np.asarray(head) * self.cfg.max_speed   # off the meet point, onto its edge
-        n1 = np.array([math.cos(self.mins[0][1]), math.sin(self.mins[0][1])]) if self.mins \
-            else np.zeros(2)
-        diff = n1 - np.array([math.cos(self.mins[1][1]), math.sin(self.mins[1][1])]) \
-            if len(self.mins) >= 2 else np.zeros(2)
+        mins = self.gvd_mins
+        n1 = np.array([math.cos(mins[0][1]), math.sin(mins[0][1])]) if mins else np.zeros(2)
+        diff = n1 - np.array([math.cos(mins[1][1]), math.sin(mins[1][1])]) \
+            if len(mins) >= 2 else np.zeros(2)
         if np.linalg.norm(diff) < 1e-6:
             return self._end_branch('dead_end')
-        (d1, a1), (d2, a2) = self.mins[:2]
+        (d1, a1), (d2, a2) = mins[:2]
         n2 = np.array([math.cos(a2), math.sin(a2)])
         tang = np.array([-diff[1], diff[0]]) / np.linalg.norm(diff)
         if head is None:                  # from a cusp: into the narrow region (D falls)
@@ -212,7 +212,10 @@ class TraceGVD:
 
     def _on_meet(self, idx, xy):
         """A meet point: the GVD edges leaving it (bisectors between the closest obstacles'
-        bearings) become branches of the narrow node; the robot goes on along one."""
+        bearings) become branches of the narrow node; the robot goes on along the one
+        nearest its heading. Two branches equally near it (within half the cones' spacing,
+        the ring's bearing resolution) are a symmetric fork: the robot takes the right-hand
+        one, as at Fig. 13's Mp1 ('The robot chooses the lower edge', arriving along +x)."""
         n = self.nodes[self.current] if self.current is not None else None
         if n is None or n.kind != 'narrow' or self.task.get('branch') is None:
             return
@@ -222,8 +225,13 @@ class TraceGVD:
         out = self._free_bearings([back], self.det, one_door=True)
         if not out:
             return
-        out.sort(key=lambda m: abs(math.remainder(m - math.atan2(head[1], head[0]),
-                                                  2 * math.pi)))
+        a = math.atan2(head[1], head[0])
+        dev = [math.remainder(m - a, 2 * math.pi) for m in out]     # + left, - right
+        order = sorted(range(len(out)), key=lambda i: abs(dev[i]))
+        out, dev = [out[i] for i in order], [dev[i] for i in order]
+        if len(out) > 1 and abs(dev[1]) - abs(dev[0]) < math.pi / len(self.mount) and \
+                dev[0] > dev[1]:
+            out[:2] = out[1::-1]       # a symmetric fork: the right-hand branch first
         for m in out[1:]:
             n.branches.append(Branch(tuple(xy), (math.cos(m), math.sin(m)), idx))
         self.task['heading'] = (math.cos(out[0]), math.sin(out[0]))
@@ -260,10 +268,22 @@ class TraceGVD:
             if any(abs(math.remainder(b - e, 2 * math.pi)) < math.radians(60)
                    for e in exclude):
                 continue
-            if all(abs(math.remainder(b - o, 2 * math.pi)) > math.radians(45)
+            if all(abs(math.remainder(b - o, 2 * math.pi)) > math.radians(45) or
+                   not self._one_opening(r, ang, b, o, beyond)
                    for o in out):
                 out.append(b)
         return out
+
+    @staticmethod
+    def _one_opening(r, ang, b, o, beyond):
+        """Every cone between bearings ``b`` and ``o`` (the shorter way round) reaches
+        beyond ``beyond``: the two maxima look through one opening. A cone between them
+        that meets an obstacle within ``beyond`` separates two openings, two GVD edges."""
+        span = math.remainder(o - b, 2 * math.pi)
+        rel = np.remainder(ang - b, 2 * math.pi) if span > 0 else \
+            np.remainder(b - ang, 2 * math.pi)
+        between = (rel > 1e-6) & (rel < abs(span) - 1e-6)
+        return bool(np.all(r[between] > beyond))
 
     def _end_branch(self, how):
         br = self.task.get('branch')
