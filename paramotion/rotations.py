@@ -23,62 +23,34 @@ def matrix_from_rotvec(v: ArrayLike) -> np.ndarray:
         x, y, z = v.tolist()           # the same floats as below, in one call
     else:
         x, y, z = float(v[0]), float(v[1]), float(v[2])
-    return np.array(_rodrigues_rows(x, y, z))
-
-
-def matrices_from_rotvecs(v: ArrayLike) -> np.ndarray:
-    """Rotation matrices (n, 3, 3) of rotation vectors (n, 3): :func:`matrix_from_rotvec` of
-    each row, the same floats, made into one array (a pair costs about one matrix)."""
-    rows = np.asarray(v, dtype=float).reshape(-1, 3).tolist()
-    return np.array([_rodrigues_rows(x, y, z) for x, y, z in rows])
-
-
-def _rodrigues_rows(x: float, y: float, z: float) -> list[list[float]]:
-    """Rows of the rotation matrix of the rotation vector (x, y, z), as Python floats."""
     th = math.sqrt(x * x + y * y + z * z)
     if th < 1e-12:
-        return [[1.0, -z, y], [z, 1.0, -x], [-y, x, 1.0]]
+        return np.array([[1.0, -z, y], [z, 1.0, -x], [-y, x, 1.0]])
     kx, ky, kz = x / th, y / th, z / th
     c, s = math.cos(th), math.sin(th)
     C = 1.0 - c
-    return [
+    return np.array([
         [c + kx * kx * C, kx * ky * C - kz * s, kx * kz * C + ky * s],
         [ky * kx * C + kz * s, c + ky * ky * C, ky * kz * C - kx * s],
-        [kz * kx * C - ky * s, kz * ky * C + kx * s, c + kz * kz * C]]
+        [kz * kx * C - ky * s, kz * ky * C + kx * s, c + kz * kz * C]])
 
 
 def rotvec_from_matrix(R: ArrayLike) -> np.ndarray:
     """Rotation vector of a rotation matrix (via the quaternion, robust near 0 and pi)."""
-    return np.array(_rotvec_of_quat(*quat_from_matrix(R)))
-
-
-def rotvecs_from_matrices(R: ArrayLike) -> np.ndarray:
-    """Rotation vectors (n, 3) of rotation matrices (n, 3, 3): :func:`rotvec_from_matrix` of
-    each, the same floats, made into one array."""
-    mats = np.asarray(R, dtype=float).reshape(-1, 3, 3).tolist()
-    return np.array([_rotvec_of_quat(*_quat_of_rows(m)) for m in mats])
-
-
-def _rotvec_of_quat(x: float, y: float, z: float, w: float) -> list[float]:
-    """Rotation vector of the unit quaternion (x, y, z, w), as Python floats."""
+    x, y, z, w = quat_from_matrix(R)
     if w < 0.0:
         x, y, z, w = -x, -y, -z, -w
     s = math.sqrt(x * x + y * y + z * z)
     if s < 1e-12:
-        return [2.0 * x, 2.0 * y, 2.0 * z]
+        return np.array([2.0 * x, 2.0 * y, 2.0 * z])
     k = 2.0 * math.atan2(s, w) / s
-    return [x * k, y * k, z * k]     # np.array([x, y, z]) * k, one array less
+    return np.array([x * k, y * k, z * k])     # np.array([x, y, z]) * k, one array less
 
 
 def quat_from_matrix(R: ArrayLike) -> tuple[float, float, float, float]:
     """(x, y, z, w) unit quaternion of a rotation matrix (Shepperd's method)."""
     # One conversion to Python floats (exact) instead of nine element reads of an array.
-    return _quat_of_rows(np.asarray(R, dtype=float).tolist())
-
-
-def _quat_of_rows(rows: list[list[float]]) -> tuple[float, float, float, float]:
-    """:func:`quat_from_matrix` of a matrix given as rows of Python floats."""
-    (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = rows
+    (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = np.asarray(R, dtype=float).tolist()
     tr = m00 + m11 + m22
     if tr >= max(m00, m11, m22):
         t = math.sqrt(1.0 + tr) * 2.0

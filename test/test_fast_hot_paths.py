@@ -441,65 +441,70 @@ def test_kalman_covariances_kept_per_input_equal_the_formulas():
         kf.P[0, 0] = 1.0
 
 
-def test_paired_relative_poses_equal_two_lone_evaluations():
-    """``IsolationController._relative_pair`` (the poses at ``t`` and ``t + h`` as stacks)
-    and the stacked inverse kinematics equal the desired pose relative to the compensated
-    base written out for each time alone (trim, reaction-free base, ``(I - J K)^-1``), bit
-    for bit, in each mode and with the trim turned."""
-    from cable_robot_pkg.fast.isolation import IsolationController
-    from paramotion.gough_stewart import inverse_kinematics
-    from paramotion.rotations import matrix_from_rotvec, rotvec_from_matrix
-    cfg = load_config()
-    rng = np.random.default_rng(31)
-    for mode in ('predictive', 'cheng', 'predictive'):
-        ctl = IsolationController.from_config(cfg, mode=mode)
-        ctl.trim = rng.normal(0.0, 1e-3, 6)
-        for k in range(60):
-            stamp = 0.005 * k
-            ctl.add_base(stamp + 0.02, stamp, rng.normal(0.0, 1e-2, 3),
-                         matrix_from_rotvec(rng.normal(0.0, 1e-2, 3)))
-        p_nom, R_nom = cfg.chain.nominal_relative_pose()
-        for _ in range(20):
-            t, h = 0.3 + rng.uniform(0.0, 0.01), 0.002
-            P = p_nom + rng.normal(0.0, 0.01, (2, 3))
-            R = np.array([matrix_from_rotvec(rng.normal(0.0, 0.02, 3)) @ R_nom
-                          for _ in range(2)])
-            want = []
-            for j, tj in enumerate((t, t + h)):
-                p_b, R_b = ctl._base_command(tj)
-                p_d = P[j] + ctl.trim[:3]
-                R_d = matrix_from_rotvec(ctl.trim[3:]) @ R[j]
-                rel_p, rel_R = R_b.T @ (p_d - p_b), R_b.T @ R_d
-                if ctl.reaction is not None:
-                    e0 = np.concatenate([rel_p - ctl.nominal_p,
-                                         rotvec_from_matrix(rel_R @ ctl.nominal_R.T)])
-                    e = ctl.reaction[1] @ e0
-                    rel_p = ctl.nominal_p + e[:3]
-                    rel_R = matrix_from_rotvec(e[3:]) @ ctl.nominal_R
-                want.append((rel_p, rel_R, inverse_kinematics(ctl.geometry, rel_p, rel_R)))
-            rel_p, rel_R = ctl._relative_pair(t, h, P, R)
-            lengths = inverse_kinematics(ctl.geometry, rel_p, rel_R)
-            for j in range(2):
-                assert np.array_equal(rel_p[j], want[j][0])
-                assert np.array_equal(rel_R[j], want[j][1])
-                assert np.array_equal(lengths[j], want[j][2])
-        ctl.trim[3:] += 1e-3
+def test_simulator_state_diagnostics_equal_the_array_formulas():
+    """``FastSimNode.publish_state`` counts legs at a stroke end and names the slack cables,
+    those over the tension limit and the legs at a stroke end from the step's summary and
+    float tests: the counts and the warning equal the array formulas' on every publish,
+    including NaN tensions and NaN leg lengths."""
+    from collections import defaultdict
+    from types import SimpleNamespace
 
+    from cable_robot_pkg.fast.ros_messages import LEG_NAMES
+    from cable_robot_pkg.fast.sim_node import FastSimNode
+    rng = np.random.default_rng(41)
+    n, t_max, leg_min, leg_max = 10, 5000.0, 0.9, 1.3
+    names = [f'c{i}' for i in range(n)]
+    warnings = []
 
-def test_batched_rotation_helpers_equal_the_single_ones():
-    """``matrices_from_rotvecs`` and ``rotvecs_from_matrices`` give, row for row, what
-    ``matrix_from_rotvec`` and ``rotvec_from_matrix`` give, bit for bit, including the small
-    angle and near-pi branches."""
-    from paramotion.rotations import (
-        matrices_from_rotvecs,
-        matrix_from_rotvec,
-        rotvec_from_matrix,
-        rotvecs_from_matrices,
-    )
-    rng = np.random.default_rng(37)
-    v = rng.normal(size=(500, 3)) * 10.0 ** rng.uniform(-14, 0.5, (500, 1))
-    v[:20] *= np.pi / np.linalg.norm(v[:20], axis=1, keepdims=True)     # half turns
-    R = matrices_from_rotvecs(v)
-    assert R.shape == (500, 3, 3)
-    assert np.array_equal(R, np.array([matrix_from_rotvec(x) for x in v]))
-    assert np.array_equal(rotvecs_from_matrices(R), np.array([rotvec_from_matrix(m) for m in R]))
+    class Pub:
+        def publish(self, msg):
+            pass
+
+        def get_subscription_count(self):
+            return 0
+
+    pose = (np.zeros(3), np.eye(3))
+    pl = SimpleNamespace(geom=SimpleNamespace(leg_min=leg_min, leg_max=leg_max),
+                         t_max=t_max, trolley_pose=lambda: pose, upper_pose=lambda: pose,
+                         feed_pose=lambda: pose, trolley_velocity=lambda: (np.zeros(3),) * 2,
+                         hinge_angles=lambda: np.zeros(2), unstretched=np.ones(n),
+                         winch_rates=np.zeros(n), last_lengths=np.ones(n))
+    node = SimpleNamespace(
+        plant=pl, pubs={k: Pub() for k in ('truth_trolley', 'truth_upper', 'truth_feed',
+                                             'cables_state', 'winches_state', 'legs_state',
+                                             'orienting_state', 'wind', 'diagnostics')},
+        msgs=defaultdict(lambda: None), stamp=lambda: None, cable_names=names,
+        stroke_steps=np.zeros(6, int),
+        cfg=SimpleNamespace(cables=SimpleNamespace(length_rates=lambda *a: np.zeros(n))),
+        sim_time=0.0, _last_diag=-1.0,
+        get_logger=lambda: SimpleNamespace(warning=warnings.append))
+    stroke = np.zeros(6, int)
+    for k in range(400):
+        t = rng.uniform(0.0, 5400.0, n) * (rng.random(n) > 0.05)
+        if rng.random() < 0.1:
+            t[rng.integers(n)] = np.nan
+        q = rng.uniform(leg_min + 0.0005, leg_max - 0.0005, 6) if rng.random() < 0.5 else \
+            rng.uniform(leg_min + 0.002, leg_max - 0.002, 6)
+        if rng.random() < 0.1:
+            q[rng.integers(6)] = np.nan
+        pl.last_tensions, pl.slack = t, t == 0.0
+        pl.slack_count, pl.tension_range = int(np.count_nonzero(pl.slack)), (t.min(), t.max())
+        pl.leg_lengths = lambda q=q: (q, np.zeros(6), np.zeros(6))
+        node.sim_time = float(k)          # a warning may come on every publish
+        before = len(warnings)
+        FastSimNode.publish_state(node)
+        at_end = (q <= leg_min + 1e-3) | (q >= leg_max - 1e-3)
+        stroke += at_end
+        over = t > t_max
+        problems = []
+        if pl.slack.any():
+            problems.append('slack: ' + ', '.join(c for c, s in zip(names, pl.slack) if s))
+        if over.any():
+            problems.append('over tension limit: ' + ', '.join(
+                c for c, o in zip(names, over) if o))
+        if at_end.any():
+            problems.append('at stroke end: ' + ', '.join(
+                c for c, e in zip(LEG_NAMES, at_end) if e))
+        assert np.array_equal(node.stroke_steps, stroke)
+        assert warnings[before:] == (['; '.join(problems)] if problems else [])
+    assert stroke.sum() > 0 and len(warnings) > 100

@@ -158,8 +158,12 @@ class FastSimNode(SimulationNode):
         q, v, f = pl.leg_lengths()
         pubs['legs_state'].publish(joint_state_msg(stamp, LEG_NAMES, q, v, f,
                                                    msg=msgs['legs_state']))
-        at_end = (q <= pl.geom.leg_min + 1e-3) | (q >= pl.geom.leg_max - 1e-3)
-        self.stroke_steps += at_end
+        # Stroke ends tested on floats (the same comparisons); arrays only when a leg is there.
+        lo, hi = pl.geom.leg_min + 1e-3, pl.geom.leg_max - 1e-3
+        at_end = None
+        if any(x <= lo or x >= hi for x in q.tolist()):
+            at_end = (q <= lo) | (q >= hi)
+            self.stroke_steps += at_end
         pubs['orienting_state'].publish(joint_state_msg(stamp, HINGE_NAMES, pl.hinge_angles(),
                                                         msg=msgs['orienting_state']))
         if self.pubs['wind'].get_subscription_count():
@@ -172,14 +176,18 @@ class FastSimNode(SimulationNode):
                 float(x) for x in pl.wind_torque)
             self.pubs['wind'].publish(w)
         problems = []
-        if pl.slack.any():
+        # The step's summary says whether there is anything to name: its slack count, and
+        # its largest tension (NaN when one is NaN, which numpy's comparison does not count).
+        if pl.slack_count:
             problems.append('slack: ' + ', '.join(n for n, s in zip(self.cable_names, pl.slack)
                                                   if s))
-        over = pl.last_tensions > pl.t_max
-        if over.any():
-            problems.append('over tension limit: ' + ', '.join(
-                n for n, o in zip(self.cable_names, over) if o))
-        if at_end.any():
+        high = pl.tension_range[1]
+        if not high <= pl.t_max:
+            over = pl.last_tensions > pl.t_max
+            if over.any():
+                problems.append('over tension limit: ' + ', '.join(
+                    n for n, o in zip(self.cable_names, over) if o))
+        if at_end is not None:
             problems.append('at stroke end: ' + ', '.join(
                 n for n, e in zip(LEG_NAMES, at_end) if e))
         if problems and self.sim_time - self._last_diag >= 1.0:
