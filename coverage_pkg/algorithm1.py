@@ -162,7 +162,7 @@ class PaperPlanner(EventSensing, CreateNode, MorseDecompCoverage, TraceGVD, Find
         self.route = []
         self.sweeps = 0
         self.D, self.mins, self.angles, self.ranges = math.inf, [], None, None
-        self.gvd_mins = []                         # the closest distinct obstacles
+        self._gvd_mins = []                        # the closest distinct obstacles
         self._prev_d, self._near_bearing, self._meet_cand = None, None, None
         self._hist, self.stuck_count, self.given_up = [], 0, []
         self.update_times = []
@@ -205,7 +205,7 @@ class PaperPlanner(EventSensing, CreateNode, MorseDecompCoverage, TraceGVD, Find
         self.ranges, self.angles = r, self.mount + self.pose[2]
         rr = np.where(np.isfinite(r), r, np.inf)
         self.mins = gvdmod.ring_minima(rr, self.angles)
-        self.gvd_mins = gvdmod.distinct_minima(rr, self.angles)
+        self._gvd_mins = None
         prev, self.D = self.D, float(np.nanmin(r))
         self.paths.add(self.pose[0], self.pose[1], self.D)
         if self.mode == 'gvd' and (self._gvd_last is None or
@@ -226,6 +226,15 @@ class PaperPlanner(EventSensing, CreateNode, MorseDecompCoverage, TraceGVD, Find
             self._on_event(t, ev[1], ev[2], 'injected')
         if self.mode == 'lap':
             self._profile_sample()
+
+    @property
+    def gvd_mins(self) -> list[tuple[float, float]]:
+        """The closest distinct obstacles of this sweep (:func:`coverage_pkg.gvd.
+        distinct_minima`), for GVD following; computed when first asked for."""
+        if self._gvd_mins is None:
+            rr = np.where(np.isfinite(self.ranges), self.ranges, np.inf)
+            self._gvd_mins = gvdmod.distinct_minima(rr, self.angles)
+        return self._gvd_mins
 
     def echo(self, direction: float, cone: float = None) -> float:
         """Nearest echo within ``cone`` of the world bearing ``direction`` (max range if none)."""

@@ -68,18 +68,19 @@ def one_surface(ranges: ArrayLike, angles: ArrayLike, m1: tuple[float, float],
     several cones: a flat stretch of equal echoes, or two faces of a convex corner (a door
     jamb). False when no echo lies between the two bearings or they are more than 150
     degrees apart (the robot then stands between the two)."""
-    r = np.asarray(ranges, dtype=float)
-    a = np.asarray(angles, dtype=float)
     (d1, a1), (d2, a2) = m1, m2
     span = math.remainder(a2 - a1, 2 * math.pi)
     if abs(span) > math.radians(150.0):
         return False
-    rel = np.remainder(a - a1, 2 * math.pi) if span > 0 else np.remainder(a1 - a, 2 * math.pi)
-    between = (rel > 1e-6) & (rel < abs(span) - 1e-6)
-    if not between.any():
-        return False
-    rb = r[between]
-    return bool(np.all(np.isfinite(rb)) and rb.max() <= max(d1, d2) + tol)
+    top, found = max(d1, d2) + tol, False
+    for rk, ak in zip(np.asarray(ranges, dtype=float).tolist(),
+                      np.asarray(angles, dtype=float).tolist()):
+        rel = (ak - a1) % (2 * math.pi) if span > 0 else (a1 - ak) % (2 * math.pi)
+        if 1e-6 < rel < abs(span) - 1e-6:
+            if not rk <= top:                    # farther, or no echo (nan, inf)
+                return False
+            found = True
+    return found
 
 
 def distinct_minima(ranges: ArrayLike, angles: ArrayLike, tol: float = 0.03,
@@ -93,13 +94,13 @@ def distinct_minima(ranges: ArrayLike, angles: ArrayLike, tol: float = 0.03,
     one surface with a nearer kept one (:func:`one_surface`) is dropped."""
     r = np.asarray(ranges, dtype=float)
     a = np.asarray(angles, dtype=float)
-    rr = np.where(np.isfinite(r) & (r > 0), r, np.inf)
     order = np.argsort(np.remainder(a, 2 * math.pi))
-    rs, as_ = rr[order], a[order]
+    rs = [v if v > 0 and math.isfinite(v) else math.inf for v in r[order].tolist()]
+    as_ = a[order].tolist()
     n = len(rs)
     mins = []
     for k in range(n):
-        if not np.isfinite(rs[k]) or rs[k] > rs[k - 1] or rs[k] > rs[(k + 1) % n]:
+        if not math.isfinite(rs[k]) or rs[k] > rs[k - 1] or rs[k] > rs[(k + 1) % n]:
             continue
         lo = hi = 0
         while lo < n - 1 and rs[(k - lo - 1) % n] <= rs[k] + tol:
@@ -107,13 +108,13 @@ def distinct_minima(ranges: ArrayLike, angles: ArrayLike, tol: float = 0.03,
         while hi < n - 1 - lo and rs[(k + hi + 1) % n] <= rs[k] + tol:
             hi += 1
         first = as_[(k - lo) % n]
-        span = np.remainder(as_[(k + hi) % n] - first, 2 * math.pi)
-        mins.append((float(rs[k]), float(math.remainder(first + span / 2, 2 * math.pi))))
+        span = (as_[(k + hi) % n] - first) % (2 * math.pi)
+        mins.append((rs[k], math.remainder(first + span / 2, 2 * math.pi)))
     mins.sort()
     kept = []
     for m in mins:
         if all(abs(math.remainder(m[1] - k[1], 2 * math.pi)) >= min_separation and
-               not one_surface(r, a, k, m) for k in kept):
+               not one_surface(rs, as_, k, m) for k in kept):
             kept.append(m)
     return kept
 
