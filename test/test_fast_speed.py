@@ -341,3 +341,12 @@ def test_history_lookups_by_bisection_equal_the_linear_search():
             else:
                 want = values[0] if k <= 0 else values[-1]
             assert np.array_equal(got, want)
+
+
+def test_isolation_replay_times_the_controller_on_the_recorded_calls():
+    """``bench.isolation_replay`` replays a loop run's controller calls on fresh controllers:
+    every replay commands the same legs (it raises otherwise) and the figure is a CPU time."""
+    from cable_robot_pkg.fast.bench import isolation_replay
+    r = isolation_replay(0.5, repeat=2)
+    assert r['calls'] > 400 and 0.0 < r['cpu_s_per_sim_s'] < 10.0
+    assert len(r['commands']) == 12

@@ -122,6 +122,62 @@ def cpu_breakdown(duration: float = 3.0, launch_args: dict | None = None) -> dic
     return out
 
 
+def isolation_replay(duration: float = 8.0, mode: str = 'predictive', latency: float = 0.04,
+                     repeat: int = 7) -> dict[str, float | str]:
+    """CPU seconds per sim second of the isolation controller alone, steady against the
+    machine's load: the calls a ROS-free loop run (:func:`cable_robot_pkg.fast.loop.run_loop`,
+    ``duration`` s, ``mode``, ``latency``) makes on its controller (frames, encoders, targets,
+    updates) are recorded, then replayed on ``repeat`` fresh controllers; the least CPU time
+    counts (other work on the machine only adds to it). ``commands`` fingerprints the leg
+    lengths the replays commanded (the same in every replay, and between two trees whose
+    results are bit-identical)."""
+    import copy
+    import hashlib
+
+    import numpy as np
+
+    import cable_robot_pkg.fast.isolation as isolation
+    from cable_robot_pkg.fast.configuration import load_config
+    from cable_robot_pkg.fast.loop import run_loop
+
+    cls = isolation.IsolationController
+    names = ('update', 'add_base', 'add_feed', 'add_trolley', 'add_leg_state',
+             'add_hinge_state', 'set_target')
+    calls = []
+    saved = {name: getattr(cls, name) for name in names}
+
+    def recording(name, method):
+        def wrapper(self, *args):
+            calls.append((name, copy.deepcopy(args)))
+            return method(self, *args)
+        return wrapper
+    try:
+        for name, method in saved.items():
+            setattr(cls, name, recording(name, method))
+        run_loop(duration, mode=mode, latency=latency)
+    finally:
+        for name, method in saved.items():
+            setattr(cls, name, method)
+    cfg = load_config()
+    best, digest = math.inf, None
+    for _ in range(int(repeat)):
+        ctl = cls.from_config(cfg, mode=mode)
+        ctl.compile_kernels()
+        lengths = []
+        c0 = time.process_time()
+        for name, args in calls:
+            out = getattr(ctl, name)(*args)
+            if name == 'update':
+                lengths.append(out.lengths)
+        best = min(best, time.process_time() - c0)
+        replayed = hashlib.sha1(np.array(lengths).tobytes()).hexdigest()[:12]
+        if digest not in (None, replayed):
+            raise RuntimeError('isolation_replay: two replays of the same calls commanded '
+                               'different leg lengths')
+        digest = replayed
+    return {'cpu_s_per_sim_s': best / duration, 'calls': len(calls), 'commands': digest}
+
+
 def _timed_keywords(key, fn, into):
     """``fn`` (called with keyword arguments) timed into ``into[key]``."""
     def wrapper(*args, **kwargs):
