@@ -184,12 +184,34 @@ def _sigint_default():
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
-def child_setup() -> Callable[[], None] | None:
+def _die_with(parent: int, sigint_default: bool) -> Callable[[], None]:
+    """Child set-up: SIGINT when the process that started this one dies (Linux
+    ``PR_SET_PDEATHSIG``); SIGINT at its default first when ``sigint_default``."""
+    def setup() -> None:
+        if sigint_default:
+            _sigint_default()
+        if sys.platform.startswith('linux'):
+            import ctypes
+            ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGINT))  # PR_SET_PDEATHSIG
+        if os.getppid() != parent:                  # it died before the set-up
+            os.kill(os.getpid(), signal.SIGINT)
+    return setup
+
+
+def child_setup(die_with_parent: bool = False) -> Callable[[], None] | None:
     """``preexec_fn`` for a node process: none, unless this process ignores SIGINT (started as
     a background job by a shell without job control). A node inherits an ignored SIGINT and
     then rightly keeps ignoring it; a launcher is the node's terminal, so its nodes start with
-    SIGINT at its default, as under ``ros2 launch``."""
-    return _sigint_default if signal.getsignal(signal.SIGINT) == signal.SIG_IGN else None
+    SIGINT at its default, as under ``ros2 launch``.
+
+    ``die_with_parent``: the node also gets SIGINT when this process dies, however it dies
+    (SIGTERM, SIGKILL). For nodes in a session of their own that a script starts and stops
+    (a benchmark, a test), which no terminal Ctrl-C reaches: a killed script leaves no graph
+    running. A launcher's nodes do not have it, as under ``ros2 launch``."""
+    sigint_default = signal.getsignal(signal.SIGINT) == signal.SIG_IGN
+    if die_with_parent:
+        return _die_with(os.getpid(), sigint_default)
+    return _sigint_default if sigint_default else None
 
 
 class _Proc:
@@ -504,7 +526,8 @@ class NodeProcess:
         self._log = open(log_path, 'wb') if log_path else subprocess.DEVNULL
         self.proc = subprocess.Popen(args, env={**os.environ, **(env or {})},
                                      stdout=self._log, stderr=subprocess.STDOUT,
-                                     preexec_fn=child_setup(), start_new_session=True)
+                                     preexec_fn=child_setup(die_with_parent=True),
+                                     start_new_session=True)
 
     def interrupt(self, timeout: float = 10.0) -> int | None:
         """SIGINT (clean shutdown), then SIGKILL if it does not exit within ``timeout``."""

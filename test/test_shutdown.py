@@ -390,3 +390,44 @@ def test_a_ctrl_c_while_pybullet_connects_leaves_no_ignored_error(monkeypatch):
     client = bullet_client()
     assert client.getConnectionInfo()['isConnected'] == 1
     client.disconnect()
+
+
+_SCRIPT_PARENT = """
+import subprocess, sys, time
+from paramotion.launch import child_setup
+child = subprocess.Popen([sys.executable, '-c', 'import time; time.sleep(60)'],
+                         preexec_fn=child_setup(die_with_parent=%s), start_new_session=True)
+print(child.pid, flush=True)
+time.sleep(60)
+"""
+
+
+def _alive(pid):
+    """The process exists and is not a zombie."""
+    try:
+        with open(f'/proc/{pid}/stat') as f:
+            return f.read().split(')')[-1].split()[0] != 'Z'
+    except FileNotFoundError:
+        return False
+
+
+@pytest.mark.skipif(not sys.platform.startswith('linux'), reason='PR_SET_PDEATHSIG is Linux')
+@pytest.mark.parametrize('die_with_parent', [True, False])
+def test_a_script_killed_leaves_no_node_of_its_own_session_running(die_with_parent):
+    """A benchmark or test starts nodes in sessions of their own (no terminal Ctrl-C reaches
+    them) and stops them in a ``finally``, which a SIGKILL or SIGTERM skips. With
+    ``die_with_parent`` the nodes get SIGINT when the script dies; without it (a launcher's
+    nodes, as under ``ros2 launch``) they go on running."""
+    parent = subprocess.Popen([sys.executable, '-c', _SCRIPT_PARENT % die_with_parent],
+                              stdout=subprocess.PIPE, text=True)
+    child = int(parent.stdout.readline())
+    try:
+        assert _alive(child)
+        parent.kill()
+        parent.wait(10)
+        gone = wait_until(lambda: not _alive(child), 5.0)
+        assert gone == die_with_parent
+    finally:
+        if _alive(child):
+            os.kill(child, signal.SIGKILL)
+        parent.stdout.close()

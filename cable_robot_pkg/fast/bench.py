@@ -341,7 +341,8 @@ def bench_processes(wall_s: float = 40.0, real_time_factor: float = 1.0,
                 logs.append(log)
                 procs[action.label] = subprocess.Popen(
                     cmd, env={**env, **action.env}, stdout=log, stderr=subprocess.STDOUT,
-                    preexec_fn=child_setup(), start_new_session=True)
+                    preexec_fn=child_setup(die_with_parent=True),
+                    start_new_session=True)
             time.sleep(wall_s)
         finally:
             exits = _stop(procs)
