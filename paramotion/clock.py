@@ -194,10 +194,15 @@ class ClockSourceNode(ParamotionNode):
             self.executor.create_task(self._answer_tick)
 
     def _answer_tick(self) -> None:
-        """A tick of the wall timer brought forward by an answer, unless that would run
-        ahead of ``real_time_factor`` (one wall period since the last advance)."""
+        """The advance of a wall-timer tick that found the source waiting, done as soon as
+        the answer is in rather than at the next tick. Every advance so belongs to its own
+        wall tick (one that advanced or one that waited; the wait ends with the advance), so
+        the source never runs ahead of ``real_time_factor`` over the ticks; measured from the
+        last advance instead, a tick that fired late would hold the answer's advance back to
+        the tick after."""
         self._answer_tick_queued = False
-        if time.monotonic() - self._advanced_at >= self._wall_period:
+        if self._sync_since is not None or \
+                time.monotonic() - self._advanced_at >= self._wall_period:
             self._free_running_tick()
 
     def _late_answer(self) -> str | None:
