@@ -1233,24 +1233,6 @@ class IsolationController:
             rel_p, rel_R = self.nominal_p + e[:3], matrix_from_rotvec(e[3:]) @ self.nominal_R
         return rel_p, rel_R
 
-    def _relative(self, t, target_p, target_R):
-        """Desired lower platform pose in the (compensated) upper platform frame at ``t``."""
-        p_b, R_b = self._base_command(t)
-        p_d = target_p + self.trim[:3]
-        trim_rotvec = self.trim[3:].tolist()
-        if self._trim_R[0] != trim_rotvec:      # the trim changes with feed frames only
-            self._trim_R = (trim_rotvec, matrix_from_rotvec(trim_rotvec))
-        R_d = self._trim_R[1] @ target_R
-        rel_p, rel_R = R_b.T @ (p_d - p_b), R_b.T @ R_d
-        if self.reaction is not None:
-            # (p_b, R_b) is the reaction-free base: moving the payload by e relative to the
-            # base moves the base by -K e, so the legs move it by (I - J K)^-1 e0.
-            e0 = np.concatenate([rel_p - self.nominal_p,
-                                 rotvec_from_matrix(rel_R @ self.nominal_R.T)])
-            e = self.reaction[1] @ e0
-            rel_p, rel_R = self.nominal_p + e[:3], matrix_from_rotvec(e[3:]) @ self.nominal_R
-        return rel_p, rel_R
-
     def _clip(self, lengths):
         lo, hi = self.lo, self.hi
         clipped = any(x < lo or x > hi for x in lengths.tolist())
