@@ -3,9 +3,11 @@
 The same algorithm objects the nodes wrap (:class:`~cable_robot_pkg.fast.plant.FeedSupportPlant`,
 :class:`~cable_robot_pkg.fast.pid.CoarseController`,
 :class:`~cable_robot_pkg.fast.isolation.IsolationController`), called in the order the
-lock-step graph calls them every 5 ms publish period: physics steps; encoder samples; tracker
-frames released ``latency`` after capture (noise, optional calibration offset); feed targets at
-100 Hz; the cable loop at 50 Hz; the isolation update; leg commands stamped now. No messages,
+lock-step graph calls them every publish period (``period``, 5 ms by default): physics steps;
+encoder samples; tracker frames released ``latency`` after capture (noise, optional calibration
+offset); feed targets at 100 Hz; the cable loop at 50 Hz; the isolation update; leg commands
+stamped now. The tracker captures and the isolation controller updates once per period, as the
+nodes do on the simulator's state messages: ``period`` 0.01 runs them at 100 Hz. No messages,
 no executor: several times cheaper than the graph, so sweeps and long causal tests use it
 (:func:`run_loop`); the graph (:func:`cable_robot_pkg.fast.scenario.run_graph`) remains the
 product and is what ``paramotion fast`` runs.
@@ -67,14 +69,21 @@ def run_loop(duration: float, config: str | os.PathLike[str] | None = None,
              overrides: dict | None = None, latency: float = 0.02, mode: str | None = None,
              without: str | Iterable[str] = (), wind: float = 1.0, wind_seed: int | None = None,
              tracker_offset: ArrayLike = (0.0, 0.0, 0.0), tracker_seed: int = 1,
-             settle: float = 3.0, abort_mm: float = 2000.0) -> dict:
+             settle: float = 3.0, abort_mm: float = 2000.0, period: float = PERIOD,
+             command_lag: int = 0) -> dict:
     """Run the loops for ``duration`` sim seconds; returns the error series and RMS figures.
 
     ``config``/``overrides``: YAML path and dict merged over the defaults; ``mode`` None: the
     config's; ``without``: ablation names; ``abort_mm``: stop early once the feed is this far
-    off (a diverged loop). Result keys: ``t``, ``feed_err`` (m), ``feed_rot_err`` (deg),
-    ``feed_offset`` (mean error vector after ``settle``, m), ``trolley_err``, ``upper_err``
-    (m), ``upper_rot_err`` (deg, against the chain's commanded upper pose),
+    off (a diverged loop); ``period``: the publish period (s), a whole number of physics steps
+    dividing the 10 ms trajectory period, at which the tracker captures and the isolation
+    controller updates; ``command_lag``: periods the plant runs before it gets the commands
+    computed on a state (0: the lock-step graph; 1: the launched graph's worst case with
+    ``sync_max_lag`` one period, where the simulator steps the next period before the answer
+    arrives; the commands keep their stamps and are held first-order from them). Result keys:
+    ``t``, ``feed_err`` (m), ``feed_rot_err`` (deg), ``feed_offset`` (mean error vector after
+    ``settle``, m), ``trolley_err``, ``upper_err`` (m), ``upper_rot_err`` (deg, against the
+    chain's commanded upper pose),
     ``feed_rms_position_mm``, ``feed_rms_orientation_deg``, ``trolley_rms_position_mm``,
     ``upper_rms_position_mm``, ``upper_rms_orientation_deg``, ``clip_count``, ``diverged``.
     """
@@ -92,14 +101,20 @@ def run_loop(duration: float, config: str | os.PathLike[str] | None = None,
         wind_model = WindModel.from_config(raw['wind'], raw['trolley'], intensity=wind,
                                            seed=wind_seed)
         plant = FeedSupportPlant(cfg, bullet, wind=wind_model)
-        steps = max(1, int(round(PERIOD / plant.dt)))
+        steps = max(1, int(round(period / plant.dt)))
+        every_target = int(round(TRAJECTORY_PERIOD / period))
+        every_cable = int(round(CABLE_PERIOD / period))
+        if every_target < 1 or abs(every_target * period - TRAJECTORY_PERIOD) > 1e-9:
+            raise ValueError(f'period {period:g} s does not divide the trajectory period '
+                             f'{TRAJECTORY_PERIOD:g} s')
         rec = {k: [] for k in ('t', 'feed_p', 'feed_R', 'target_p', 'target_R', 'trolley_p',
                                'upper_p', 'upper_R', 'trolley_target', 'upper_target_p',
                                'upper_target_R')}
         target = None
         trolley_meas = None
-        n = int(round(duration / PERIOD))
+        n = int(round(duration / period))
         diverged = False
+        pending = deque()       # per period, the commands computed on its state
         for k in range(1, n + 1):
             for _ in range(steps):
                 plant.step()
@@ -118,19 +133,27 @@ def run_loop(duration: float, config: str | os.PathLike[str] | None = None,
                     trolley_meas = (p, R)
                 else:
                     ctl.add_feed(t, stamp, p, R)
-            if k % int(round(TRAJECTORY_PERIOD / PERIOD)) == 1 or target is None:
+            if (k - 1) % every_target == 0 or target is None:
                 target = cfg.track.pose(t)
                 ctl.set_target(t, *target)
-            if k % int(round(CABLE_PERIOD / PERIOD)) == 1:
+            commands = []
+            if (k - 1) % every_cable == 0:
                 _, hinge = coarse.targets(*target)
-                plant.set_hinge_command(*hinge)
+                commands.append((plant.set_hinge_command, tuple(hinge), {}))
                 out = coarse.update(*target, trolley_meas, plant.last_tensions)
                 if out is not None:
-                    plant.set_winch_command(*out, stamp=t)
+                    commands.append((plant.set_winch_command, tuple(np.array(x) for x in out),
+                                     {'stamp': t}))
             if isolate:
                 cmd = ctl.update(t)
                 if ctl.last_base_arrival is not None or ctl.open_loop:
-                    plant.set_leg_command(cmd.lengths, cmd.rates, stamp=t)
+                    commands.append((plant.set_leg_command,
+                                     (np.array(cmd.lengths), np.array(cmd.rates)),
+                                     {'stamp': t}))
+            pending.append(commands)
+            while len(pending) > command_lag:
+                for apply, args, kwargs in pending.popleft():
+                    apply(*args, **kwargs)
             goal_p, goal_R = cfg.track.pose(t)
             trolley_goal, _, up_goal_p, up_goal_R = cfg.chain.coarse_targets(goal_p, goal_R)
             for key, value in (('t', t), ('feed_p', feed[0]), ('feed_R', feed[1]),
