@@ -97,6 +97,9 @@ class PaperConfig:
     retrace_angle: float = 45.0     # deg, transit follows a traced GVD edge (a wall at
     #                                 D = delta) by the GVD (boundary) law where the edge's
     #                                 tangent is this near the way ahead
+    meet_scan: bool = True          # ours: on a meet point the robot halts and turns its
+    #                                 ring through one cone spacing before it reads the
+    #                                 branches (False: from the one sweep that sensed it)
 
     def detector_range(self) -> float:
         """Range of the detector used for coverage: delta."""
@@ -208,6 +211,7 @@ class PaperPlanner(EventSensing, CreateNode, MorseDecompCoverage, TraceGVD, Find
         self._gvd_mins = None
         prev, self.D = self.D, float(np.nanmin(r))
         self.paths.add(self.pose[0], self.pose[1], self.D)
+        self._scan_sweep()
         if self.mode == 'gvd' and (self._gvd_last is None or
                                    math.dist(self._gvd_last, self.pose[:2]) > 0.2):
             head = self.task.get('heading') or (0.0, 0.0)

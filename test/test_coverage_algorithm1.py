@@ -150,7 +150,7 @@ def test_a_door_branch_leaves_through_the_door_not_diagonally_past_a_jamb():
         p.ranges = np.array([by_bearing[round(math.degrees(a % (2 * math.pi)), 1)]
                              for a in p.angles])
         back = math.radians(14.4)                # the corridor traced so far, behind
-        bearings = p._free_bearings([back], p.det, one_door=True)   # as at a meet point
+        bearings = p._openings(p.angles, p.ranges, [back], p.det)   # one sweep
         out = sorted(round(math.degrees(b), 1) for b in bearings)
         assert out == [186.6, 254.1]             # along the corridor; through the door
 

@@ -155,13 +155,15 @@ def test_fig13_corridor_is_one_narrow_node_joined_by_both_of_its_cusps(handover)
     creates a narrow node there, whose trace back towards Mp1 joins the corridor's traced
     GVD edge: the two narrow nodes are one cell, the later one merges into the corridor's
     node and its edge to the room is the corridor's. In Algorithm 1's order (``handover``
-    off: the corridor traced whole first) both cusps create a vast node; the room's circuit
-    from the one covered first, at Cs2, finds the two are one cell. Either way the graph: two
+    off: the corridor traced whole first) the robot takes the lower edge first too, so both
+    cusps create a vast node, Cs2's first, and the trace ends at Cs3, whose node is nearest and
+    covered first; its circuit finds Cs2's node is the same cell. Either way the graph: two
     vast nodes, one corridor node with three edges, the corner nodes."""
     p = _run('fig13', handover)
+    room = (18 + S1, 5) if handover else (18 + S1, 9)
     _check_graph(p, [('narrow', (1, 1)), ('vast', (2, 2)), ('narrow', (10, 2)),
                      ('narrow', (12 - S1, 7)), ('narrow', (10, 12)), ('narrow', (2, 12)),
-                     ('vast', (18 + S1, 5)), ('narrow', (20, 2)), ('narrow', (28, 2)),
+                     ('vast', room), ('narrow', (20, 2)), ('narrow', (28, 2)),
                      ('narrow', (28, 12)), ('narrow', (20, 12))],
                  [(1, 0, (2, 2)), (1, 2, (10, 2)), (1, 3, (12 - S1, 7)), (1, 4, (10, 12)),
                   (1, 5, (2, 12)), (6, 3, (18 + S1, 9)), (6, 3, (18 + S1, 5)),
@@ -171,6 +173,11 @@ def test_fig13_corridor_is_one_narrow_node_joined_by_both_of_its_cusps(handover)
     assert sorted(min(range(3), key=lambda k: math.dist(m[:2], hand[k]))
                   for m in corridor.meets) == [0, 1, 2]
     assert all(min(math.dist(m[:2], h) for h in hand) < TOL for m in corridor.meets)
+    # At Mp1 the robot takes the lower edge: the first branch to end at a cusp in the right
+    # room ends at Cs2.
+    first = next(e for e in p.events if e[1] == 'branch_end' and e[4].endswith('cusp') and
+                 e[2] > 18)
+    assert math.dist(first[2:4], (18 + S1, 5)) < TOL, first
     # The corridor is traced to both of its cusps in the right room: a branch ends at Cs2
     # (traced from Cs1 through Mp1) and one starts or ends at Cs3 (traced from the room).
     for cusp in ((18 + S1, 9), (18 + S1, 5)):

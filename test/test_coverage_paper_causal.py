@@ -186,6 +186,49 @@ def test_a_door_beside_a_dead_end_is_a_branch_of_the_narrow_node(without, been_t
         assert [e[1] for e in p.events][-1] == 'meet'
 
 
+# Two rooms joined by a 1.2 m door in a 0.2 m wall at x = 7.45; the left room's pillar puts
+# a GVD loop 1.6 m from the door, whose edge through the door leaves the loop 0.4 m from the
+# meet point the robot senses (gen_rooms_502's layout).
+DOOR_BESIDE_LOOP = {
+    'name': 'door_beside_loop',
+    'boundary': [[0, 0], [7.445, 0], [7.445, 3.157], [7.645, 3.157], [7.645, 0], [14.043, 0],
+                 [14.043, 5.745], [7.645, 5.745], [7.645, 4.383], [7.445, 4.383],
+                 [7.445, 5.745], [0, 5.745]],
+    'obstacles': [[[4.297, 4.158], [3.57, 4.281], [3.431, 3.174], [3.807, 3.03],
+                   [4.195, 3.131]]],
+    'start': [3.057, 5.053]}
+# The same with a rectangular pillar.
+DOOR_BESIDE_BLOCK = dict(DOOR_BESIDE_LOOP, name='door_beside_block',
+                         obstacles=[[[3.5, 3.1], [4.3, 3.1], [4.3, 4.2], [3.5, 4.2]]])
+
+
+@pytest.mark.parametrize('world, meet_scan', [(DOOR_BESIDE_LOOP, True),
+                                              (DOOR_BESIDE_LOOP, False),
+                                              (DOOR_BESIDE_BLOCK, True)])
+def test_the_meet_point_scan_finds_a_door_that_one_sweep_misses(world, meet_scan):
+    """Near the meet point the door subtends about 35 degrees, but each cone of the sweep that
+    senses it meets a jamb within delta, so one sweep shows no opening there. Halted on the
+    meet point while its ring turns through one cone spacing (``meet_scan``), the robot reads
+    the door as an opening: a branch leaves towards it, keeps its bearing past the
+    neighbouring corner's edge until the GVD edge between the jambs runs along it, and ends
+    at the cusp beyond the door, whose vast node is the right room. From the one sweep, the
+    right room is never entered, and the run ends 'done' for the left room alone."""
+    r = _run(world, PaperConfig(meet_scan=meet_scan))
+    p = r['planner']
+    assert r['state'] == 'done'
+    beyond = [n for n in p.nodes if n.kind == 'vast' and n.anchor[0] > 7.645]
+    if meet_scan:
+        assert r['covered_fraction'] >= 0.99
+        assert len(beyond) == 1 and p.events[beyond[0].created_by][1] == 'cusp'
+        # the GVD trace itself went through the door: its branch ends at the cusp beyond
+        assert any(e[1] == 'branch_end' and e[4].endswith('cusp') and e[2] > 7.445
+                   for e in p.events)
+    else:
+        assert not beyond and len(p.nodes) == 1
+        assert max(x for x, _ in r['path']) < 7.445
+        assert r['covered_fraction'] < 0.6
+
+
 CORRIDOR = {'name': 'corridor', 'boundary': [[0, 0], [12, 0], [12, 1.4], [0, 1.4]],
             'obstacles': [], 'start': [1, 0.7]}
 
@@ -302,12 +345,12 @@ def test_a_cone_meeting_an_obstacle_between_two_gaps_keeps_both_branches():
     p.angles = np.radians(deg)
     p.ranges = np.array([1.48, 0.85, 5.0, 5.0, 3.0, 5.0, 1.24, 4.13, 1.87, 1.1, 0.86, 0.8,
                          0.83, 0.99, 1.59, 5.0])
-    out = sorted(round(math.degrees(b)) % 360 for b in p._free_bearings([math.radians(343)],
-                                                                       p.det))
+    out = sorted(round(math.degrees(b)) % 360 for b in p._openings(p.angles, p.ranges,
+                                                                   [math.radians(343)], p.det))
     assert 177 in out and any(60 <= b <= 135 for b in out), out
     p.ranges[6] = 3.0                                        # no obstacle between: one gap
-    out = sorted(round(math.degrees(b)) % 360 for b in p._free_bearings([math.radians(343)],
-                                                                       p.det))
+    out = sorted(round(math.degrees(b)) % 360 for b in p._openings(p.angles, p.ranges,
+                                                                   [math.radians(343)], p.det))
     assert 177 not in out or not any(110 < b < 177 for b in out), out
 
 

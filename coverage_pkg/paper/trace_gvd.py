@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.signal import find_peaks
 
 from coverage_pkg.paper.graph_nodes import Branch
 
@@ -34,9 +35,12 @@ class TraceGVD:
             self.task['branch'] = br
             return None
         self.mode = 'gvd'
+        if 'scan' in self.task:
+            return self._scan_step(n)
         head = self.task.get('heading') or br.heading
         leave = self.task.setdefault('leave', self.pose[:2])
-        if head is not None and math.dist(leave, self.pose[:2]) < 0.6:
+        off = math.dist(leave, self.pose[:2])
+        if head is not None and off < 0.6:
             return np.asarray(head) * self.cfg.max_speed   # off the meet point, onto its edge
         mins = self.gvd_mins
         n1 = np.array([math.cos(mins[0][1]), math.sin(mins[0][1])]) if mins else np.zeros(2)
@@ -47,12 +51,21 @@ class TraceGVD:
         (d1, a1), (d2, a2) = mins[:2]
         n2 = np.array([math.cos(a2), math.sin(a2)])
         tang = np.array([-diff[1], diff[0]]) / np.linalg.norm(diff)
+        if head is not None and not self.task.get('on_edge'):
+            # Off a meet point along a branch's bearing: the GVD edge of the two closest
+            # obstacles may be a neighbouring branch's (a door's edge leaves a meet point
+            # next to the one sensed). The robot keeps the bearing until the edge it is on
+            # runs along it, within delta of the branch's start.
+            if abs(float(tang @ np.asarray(head))) < math.cos(math.radians(45)) and \
+                    off < self.det:
+                return np.asarray(head) * self.cfg.max_speed
+            self.task['on_edge'] = True
         if head is None:                  # from a cusp: into the narrow region (D falls)
             head = tang if tang @ (n1 + n2) >= 0 else -tang
             if br.opened_by is None:      # the start: the GVD edge leaves it both ways,
                 n.branches.append(Branch(self.pose[:2], tuple(-np.asarray(head)), None))
                 a = math.atan2(head[1], head[0])      # and other edges through its gaps
-                for b in self._free_bearings([a], self.det):
+                for b in self._openings(self.angles, self.ranges, [a], self.det):
                     if abs(math.remainder(b - a - math.pi, 2 * math.pi)) > math.radians(30):
                         n.branches.append(Branch(self.pose[:2], (math.cos(b), math.sin(b)),
                                                  None))
@@ -179,7 +192,7 @@ class TraceGVD:
         if 'meet' in self.cfg.without:
             return
         back = math.atan2(-heading[1], -heading[0])
-        for b in self._free_bearings([back], self.det):
+        for b in self._openings(self.angles, self.ranges, [back], self.det):
             if any(math.dist(q.start, self.pose[:2]) < 1.0 and q.heading is not None and
                    abs(math.remainder(math.atan2(q.heading[1], q.heading[0]) - b,
                                       2 * math.pi)) < math.radians(45) for q in n.branches):
@@ -211,18 +224,52 @@ class TraceGVD:
         return bool(len(r)) and float(r.max()) < self.det - self.cfg.view_margin
 
     def _on_meet(self, idx, xy):
-        """A meet point: the GVD edges leaving it (bisectors between the closest obstacles'
-        bearings) become branches of the narrow node; the robot goes on along the one
-        nearest its heading. Two branches equally near it (within half the cones' spacing,
-        the ring's bearing resolution) are a symmetric fork: the robot takes the right-hand
-        one, as at Fig. 13's Mp1 ('The robot chooses the lower edge', arriving along +x)."""
+        """A meet point: the robot halts on it and turns its ring through one cone spacing
+        (:meth:`_scan_step`), so that the GVD edges leaving it are read at several times the
+        ring's bearing resolution: a door whose jambs fall into every cone of one sweep is
+        seen through from the same place by cones turned between them (``meet_scan``, ours;
+        off, the branches are read from the one sweep that sensed the meet point)."""
         n = self.nodes[self.current] if self.current is not None else None
         if n is None or n.kind != 'narrow' or self.task.get('branch') is None:
             return
         n.meets.append((float(xy[0]), float(xy[1]), idx))
+        scan = {'meet': idx, 'xy': tuple(xy), 'yaw': self.pose[2], 'turned': 0.0,
+                'sweeps': [(self.angles.copy(), self.ranges.copy())]}
+        if self.cfg.meet_scan:
+            self.task['scan'] = scan
+        else:
+            self._meet_branches(n, scan)
+
+    def _scan_sweep(self):
+        """A sweep taken while the robot turns on a meet point: kept with its bearings."""
+        scan = self.task.get('scan')
+        if scan is not None:
+            scan['turned'] += abs(math.remainder(self.pose[2] - scan['yaw'], 2 * math.pi))
+            scan['yaw'] = self.pose[2]
+            scan['sweeps'].append((self.angles.copy(), self.ranges.copy()))
+
+    def _scan_step(self, n):
+        """Halted on a meet point while the ring turns; once it has turned through one cone
+        spacing, the openings of all the sweeps taken there give the branches
+        (:meth:`_meet_branches`). None when the scan has just ended."""
+        scan = self.task['scan']
+        if scan['turned'] < 2.0 * math.pi / len(self.mount):
+            return np.zeros(2)
+        del self.task['scan']
+        self._meet_branches(n, scan)
+        return None
+
+    def _meet_branches(self, n, scan):
+        """The GVD edges leaving a meet point (one per opening of the scan beyond delta)
+        become branches of the narrow node; the robot goes on along the one nearest its
+        heading. Two branches equally near it (within half the cones' spacing, the ring's
+        bearing resolution) are a symmetric fork: the robot takes the right-hand one, as at
+        Fig. 13's Mp1 ('The robot chooses the lower edge', arriving along +x)."""
         head = np.asarray(self.task.get('heading') or self.task['branch'].heading or (1.0, 0.0))
         back = math.atan2(-head[1], -head[0])
-        out = self._free_bearings([back], self.det, one_door=True)
+        ang = np.concatenate([a for a, _ in scan['sweeps']])
+        rng = np.concatenate([r for _, r in scan['sweeps']])
+        out = self._openings(ang, rng, [back], self.det)
         if not out:
             return
         a = math.atan2(head[1], head[0])
@@ -233,46 +280,59 @@ class TraceGVD:
                 dev[0] > dev[1]:
             out[:2] = out[1::-1]       # a symmetric fork: the right-hand branch first
         for m in out[1:]:
-            n.branches.append(Branch(tuple(xy), (math.cos(m), math.sin(m)), idx))
+            n.branches.append(Branch(tuple(scan['xy']), (math.cos(m), math.sin(m)),
+                                     scan['meet']))
         self.task['heading'] = (math.cos(out[0]), math.sin(out[0]))
-        self.task['meet'] = idx
+        self.task['meet'] = scan['meet']
         self.task['leave'] = self.pose[:2]
 
-    def _free_bearings(self, exclude, beyond, one_door=False):
-        """Bearings of the GVD edges leaving the robot's place: local maxima of the ring's
+    def _openings(self, angles, ranges, exclude, beyond):
+        """Bearings of the GVD edges leaving the place a scan was taken from: the peaks of the
         range over bearing (a gap between two closest obstacles) reaching beyond ``beyond``
-        (an edge whose end is in the detector's view is not one to trace), at least 60
-        degrees from each bearing of ``exclude`` and 45 degrees from one another. With
-        ``one_door`` (at a meet point), two maxima two cones apart with the cone between them
-        also beyond ``beyond`` and the cones on either side of the three within it are one
-        gap: a door seen from beside it, its jambs within ``beyond`` and the cone between
-        meeting something behind the door. Its edge leaves along their mean bearing, between
-        the two, not along the first of them, which runs diagonally past a jamb."""
-        r = np.where(np.isfinite(self.ranges), self.ranges, 0.0)
+        and standing out by at least the event tolerance from the dips on either side (echo
+        noise makes smaller ones). Each edge leaves along the middle of its peak's upper
+        half (the bisector of a door's jambs, a corner's diagonal). A peak whose upper half
+        holds a bearing of ``exclude``, or whose middle lies within 60 degrees of one, is
+        the edge the robot came along. Two peaks are one edge when one's upper half holds the
+        other's top (a far wall's corners seen through one door), or when they lie
+        within 45 degrees of each other and look through one opening (no bearing between
+        them meets an obstacle within ``beyond``); the first is kept."""
+        ang = np.remainder(np.asarray(angles, dtype=float), 2 * math.pi)
+        r = np.asarray(ranges, dtype=float)
+        r = np.where(np.isfinite(r), r, 0.0)
+        order = np.argsort(ang, kind='stable')
+        ang, r = ang[order], r[order]
         k = len(r)
-        order = np.argsort(self.angles % (2 * math.pi))
-        r, ang = r[order], (self.angles % (2 * math.pi))[order]
-        gaps = []                                    # (cone, bearing) per gap
-        for i in range(k):
-            if r[i] < r[i - 1] or r[i] < r[(i + 1) % k] or r[i] <= beyond:
+        if k < 3 or not (r > beyond).any():
+            return []
+        r3 = np.concatenate([r, r, r])
+        a3 = np.concatenate([ang - 2 * math.pi, ang, ang + 2 * math.pi])
+        peaks, props = find_peaks(r3, prominence=self.cfg.event_tolerance)
+
+        def inside(x, lo, hi):
+            return math.remainder(x - lo, 2 * math.pi) % (2 * math.pi) <= hi - lo
+
+        kept = []                                  # (middle, top, lo, hi) per edge
+        for p, prom in zip(peaks, props['prominences']):
+            if not k <= p < 2 * k or r3[p] <= beyond:
                 continue
-            if one_door and gaps and gaps[-1][0] == i - 2 and r[i - 1] > beyond and \
-                    r[i - 3] <= beyond and r[(i + 1) % k] <= beyond:
-                a = gaps[-1][1]
-                gaps[-1] = (None, float((a + math.remainder(ang[i] - a, 2 * math.pi) / 2)
-                                        % (2 * math.pi)))
-            else:
-                gaps.append((i, float(ang[i])))
-        out = []
-        for _, b in gaps:
-            if any(abs(math.remainder(b - e, 2 * math.pi)) < math.radians(60)
+            level = max(beyond, r3[p] - prom / 2)
+            i = j = p
+            while i > p - k + 1 and r3[i - 1] > level:
+                i -= 1
+            while j < p + k - 1 and r3[j + 1] > level:
+                j += 1
+            lo, hi, top = float(a3[i]), float(a3[j]), float(a3[p])
+            mid = ((lo + hi) / 2) % (2 * math.pi)
+            if any(inside(e, lo, hi) or
+                   abs(math.remainder(mid - e, 2 * math.pi)) < math.radians(60)
                    for e in exclude):
                 continue
-            if all(abs(math.remainder(b - o, 2 * math.pi)) > math.radians(45) or
-                   not self._one_opening(r, ang, b, o, beyond)
-                   for o in out):
-                out.append(b)
-        return out
+            if not any(inside(top, q[2], q[3]) or inside(q[1], lo, hi) or
+                       (abs(math.remainder(mid - q[0], 2 * math.pi)) <= math.radians(45) and
+                        self._one_opening(r, ang, mid, q[0], beyond)) for q in kept):
+                kept.append((mid, top, lo, hi))
+        return [q[0] for q in kept]
 
     @staticmethod
     def _one_opening(r, ang, b, o, beyond):
