@@ -1,6 +1,7 @@
 """The coverage picture (like Fig. 13 of Acar, Choset and Lee): world, path, cells and graph."""
 from __future__ import annotations
 
+import textwrap
 from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -91,7 +92,8 @@ def render_coverage(path_png: str | Path, world: World, path: ArrayLike,
     ax.set_xlim(xmin - 0.5, xmax + 0.5)
     ax.set_ylim(ymin - 0.5, ymax + 0.5)
     ax.set_aspect('equal')
-    ax.set_title(title, fontsize=9)
+    # a 9 pt character is about 0.075 in wide: wrap the title to the figure's width
+    ax.set_title(textwrap.fill(title, max(30, int(fig.get_figwidth() / 0.075))), fontsize=9)
     ax.legend(loc='upper right', fontsize=7, framealpha=0.8)
     fig.tight_layout()
     fig.savefig(path_png, dpi=110)
