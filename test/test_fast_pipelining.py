@@ -1,18 +1,23 @@
 """FAST across processes: the simulator one control period ahead of its controllers.
 
-``launch/fast.launch.xml`` sets ``sync_max_lag`` to one publish period (0.005 s): the simulator
-steps the next period while the control container answers the last, so the two processes run
-at once instead of one after the other (docs/performance.md). These tests pin what that lag
-means for a clock source, and that the isolation controller does not reschedule its base
-predictor on the delay jitter a period of lag brings.
+``launch/fast.launch.xml`` publishes the simulator's state every 10 ms across processes (5 ms
+lock-step), states the tracker's and the isolation controller's rates that period allows
+(100 Hz, 200 Hz lock-step) and sets ``sync_max_lag`` to one publish period: the simulator steps
+the next period while the control container answers the last, so the two processes run at once
+instead of one after the other (docs/fast.md, Speed). These tests pin those defaults, that the
+stated rates are the rates the graph runs, what a period of lag means for a clock source, and
+that the isolation controller does not reschedule its base predictor on the delay jitter a
+period of lag brings.
 """
 import math
 
 import numpy as np
+import pytest
 
 from cable_robot_pkg.fast.configuration import load_config
 from cable_robot_pkg.fast.isolation import IsolationController
 from paramotion.graph import Graph
+from paramotion.launch import compose
 from paramotion.launch_xml import load as load_launch
 
 MS = 1_000_000
@@ -27,10 +32,67 @@ def _source_class():
     return Source
 
 
+def _defaults(**args):
+    """(publish period, sync_max_lag, tracker rate, isolation rate) the launch file gives."""
+    nodes = {n.label: n.params for n in load_launch('fast', args).nodes}
+    sim = nodes['fast_sim']
+    if 'fast_control_container' in nodes:
+        box = nodes['fast_control_container']
+        rates = box['fast_tracker.rate'], box['fast_isolation_controller.rate']
+    else:
+        rates = nodes['fast_tracker']['rate'], nodes['fast_isolation_controller']['rate']
+    return (sim['publish_period'], sim['sync_max_lag']) + rates
+
+
 def test_launch_default_lets_the_simulator_run_one_period_ahead():
-    desc = load_launch('fast', {})
-    sim = desc.nodes[0]
-    assert sim.params['sync_max_lag'] == sim.params['publish_period'] == 0.005
+    """Across processes: 10 ms, the tracker and the isolation controller at the 100 Hz that
+    period allows, one period of lag; lock-step (``paramotion fast``): 5 ms and 200 Hz, the
+    nodes' own defaults. Another period gives the rates it allows, at most 200 Hz."""
+    assert _defaults() == (0.01, 0.01, 100.0, 100.0)
+    assert _defaults(composed=False) == (0.01, 0.01, 100.0, 100.0)
+    assert _defaults(lockstep=True) == (0.005, 0.005, 200.0, 200.0)
+    assert _defaults(publish_period=0.005) == (0.005, 0.005, 200.0, 200.0)
+    assert _defaults(publish_period=0.004) == (0.004, 0.004, 200.0, 200.0)
+    assert _defaults(publish_period=0.02, sync_max_lag=0.0, isolation_rate=60.0) == \
+        (0.02, 0.0, 50.0, 60.0)
+
+
+def _launched_lockstep(duration, **args):
+    """The launch file's separate control nodes (``composed:=false``) run lock-step for
+    ``duration`` sim s: the feed position after every period, and how many times the tracker
+    captured and the isolation controller updated."""
+    desc = load_launch('fast', {'composed': False, 'lockstep': False, **args})
+    feed = []
+    with Graph() as graph:
+        nodes = compose(graph, desc, extra_params={'fast_sim': {
+            'lockstep': True, 'wait_for_clock_subscribers': 0, 'wait_for_matched': ['']}})
+        sim = nodes['fast_sim']
+        counts = {}
+        for label in ('fast_tracker', 'fast_isolation_controller'):
+            node = nodes[label]
+
+            def counted(*a, _tick=node._tick, _label=label):
+                counts[_label] = counts.get(_label, 0) + 1
+                return _tick(*a)
+            node._tick = counted
+        graph.run_lockstep(sim, max_sim_time=duration, on_step=lambda: feed.append(
+            tuple(sim.plant.feed_pose()[0]) + tuple(sim.plant.leg_lengths()[0])))
+    return feed, counts
+
+
+@pytest.mark.slow
+def test_the_launched_rates_are_the_rates_the_graph_runs():
+    """At the 10 ms default the tracker and the isolation controller act on every state
+    message, 100 times per sim s, as their stated rate says; stating 200 Hz at that period
+    changes nothing (bit-identical feed and legs): the clock caps it at 100 Hz."""
+    stated, counts = _launched_lockstep(1.0)
+    capped, capped_counts = _launched_lockstep(1.0, tracker_rate=200.0, isolation_rate=200.0)
+    assert len(stated) == 100
+    assert counts == {'fast_tracker': 100, 'fast_isolation_controller': 100}
+    assert capped_counts == counts
+    assert capped == stated
+    _, fast_counts = _launched_lockstep(0.2, publish_period=0.005)
+    assert fast_counts == {'fast_tracker': 40, 'fast_isolation_controller': 40}
 
 
 def _held_at(lag_s):

@@ -98,7 +98,7 @@ def test_fast_graph_holds_the_feed_and_stops_cleanly_on_terminal_ctrl_c(workspac
         rms_mm, rms_deg, n = fast_feed_errors(w, launch)
         out = check_clean_stop(launch)
     assert out.count('process has finished cleanly') == 5, out[-3000:]
-    assert n > 120
+    assert n > 60       # of the 80 feed poses in the 0.8 s window (one per 10 ms period)
     assert rms_mm < 4.0 and rms_deg < 0.1, \
         f'feed RMS {rms_mm:.2f} mm, {rms_deg:.3f} deg under ros2 launch (spec 4 mm, 0.1 deg)'
 
