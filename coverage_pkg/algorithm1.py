@@ -97,6 +97,10 @@ class PaperConfig:
     retrace_angle: float = 45.0     # deg, transit follows a traced GVD edge (a wall at
     #                                 D = delta) by the GVD (boundary) law where the edge's
     #                                 tangent is this near the way ahead
+    circuit_join: bool = True       # ours: a boundary circuit that reaches a stretch of
+    #                                 boundary another circuit followed ends there, and its
+    #                                 start's other way round is followed to known boundary
+    #                                 (False: each circuit goes round until back at its start)
     meet_scan: bool = True          # ours: on a meet point the robot halts and turns its
     #                                 ring through one cone spacing before it reads the
     #                                 branches (False: from the one sweep that sensed it)

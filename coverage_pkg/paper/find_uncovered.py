@@ -188,7 +188,7 @@ class FindUncoveredNode:
         tang = np.array([-nrm[1], nrm[0]])
         if tang @ w < 0:
             tang = -tang
-        if tang @ w < math.cos(math.radians(self.cfg.retrace_angle)):
+        if tang @ w < math.cos(math.radians(self.cfg.retrace_angle)) or self._behind(tang):
             return None
         v = tang * self.cfg.max_speed + np.clip(2.0 * (d - self.det), -1.0, 1.0) * nrm
         return v if v @ w >= 0.7 * self.cfg.max_speed else None
@@ -212,10 +212,17 @@ class FindUncoveredNode:
             return None
         if tang @ w < 0:
             tang = -tang
-        if tang @ w < math.cos(math.radians(self.cfg.retrace_angle)):
+        if tang @ w < math.cos(math.radians(self.cfg.retrace_angle)) or self._behind(tang):
             return None
         v = tang * self.cfg.max_speed + diff / np.linalg.norm(diff) * (d1 - d2) * 2.0
         return v if v @ w >= 0.7 * self.cfg.max_speed else None
+
+    def _behind(self, tang):
+        """The route's next waypoint lies behind the way ``tang`` leads (more than 0.2 m):
+        driven by the law, the robot would never reach it, nor come nearer the ones after it
+        (a tug of war between the law and the waypoint, next to a cusp); it is driven to
+        straight."""
+        return float((np.asarray(self.route[0]) - np.asarray(self.pose[:2])) @ tang) < -0.2
 
     def _towards(self, xy, speed):
         d = np.array(xy) - np.array(self.pose[:2])

@@ -36,7 +36,7 @@ class MorseDecompCoverage:
             return None
         tk, s = self.task, cell.sweep
         if tk.get('phase') is None:                # at the cell's start
-            if self._known_region(n, cell):
+            if self._known_region(n, cell, at_start=True):
                 return None
             if cell.resume is not None:            # the slice beyond an obstacle
                 tk.update(dir=cell.resume[2], x=self.pose[0], phase='lap')
@@ -79,6 +79,8 @@ class MorseDecompCoverage:
             span = self._cell().prev_span
             up = span is None or self.pose[1] >= 0.5 * (span[0] + span[1])
             tk.update(phase='lap_first', dir=1 if up else -1)
+        elif tk.pop('leave', False) and self.mins:    # away from the closest obstacle
+            tk.update(phase='lap', dir=1 if math.sin(self.mins[0][1]) < 0 else -1)
         else:
             tk.update(phase='lap', dir=-tk.get('dir', 1))
         tk.update(x=self.pose[0], first=False)
@@ -106,13 +108,17 @@ class MorseDecompCoverage:
         self._go_to(cell.start, then=None)
         return cell
 
-    def _known_region(self, n, cell):
+    def _known_region(self, n, cell, at_start=False):
         """The lap about to start lies on a lap of another Morse cell: this cell has run into
-        one already covered (a merge of the Reeb graph, recognised at a known slice)."""
+        one already covered (a merge of the Reeb graph, recognised at a known slice). At the
+        cell's start the parent's laps do not count (a successor starts on its parent's last
+        slice); a later lap on a lap of the parent is the merge of the slices on both sides
+        of an obstacle inside the parent, beyond that obstacle (Fig. 3: the cell beyond an
+        island ends where the island's far side joins the slices again)."""
         x, y = self.pose[:2]
         for m in self.nodes:
             for c in m.cells:
-                if c is cell or (m is n and c.id == cell.parent):
+                if c is cell or (at_start and m is n and c.id == cell.parent):
                     continue
                 for lx, lo, hi in c.laps:
                     if abs(lx - x) < 0.75 * self.det and lo - 0.5 <= y <= hi + 0.5:
@@ -127,6 +133,13 @@ class MorseDecompCoverage:
         prof = np.array(tk['profile']) if tk['profile'] else np.zeros((0, 3))
         y0 = tk['y0']
         lo, hi = sorted((y0, self.pose[1]))
+        if hi - lo < self.cfg.min_run:
+            # no slice to read: the cell pinches to the robot's width here (an obstacle
+            # within 2 delta of the boundary, no critical point of h): on along the boundary,
+            # and the next lap leaves the boundary followed
+            tk.update(phase='advance', x0=self.pose[0], leave=True)
+            self.mode = 'boundary'
+            return None
         cell.laps.append((tk['x'], lo, hi))
         prev_span = tk.get('prev_span') or cell.prev_span or (lo, hi)
         tk['prev_span'] = (lo, hi)
@@ -304,12 +317,13 @@ class MorseDecompCoverage:
                                            f'vast node {m.id} is vast node {n.id}: its cusp '
                                            'lies on that boundary circuit')
 
-    def _follow_velocity(self):
-        """Boundary following at D = delta, obstacle on the right: along the tangent of the
-        closest obstacle, pulled back to D = delta along its normal."""
+    def _follow_velocity(self, side=1):
+        """Boundary following at D = delta, obstacle on the right (``side`` -1: on the
+        left): along the tangent of the closest obstacle, pulled back to D = delta along its
+        normal."""
         d, a = self.mins[0]
         nrm = np.array([math.cos(a), math.sin(a)])
-        tang = np.array([-nrm[1], nrm[0]])
+        tang = side * np.array([-nrm[1], nrm[0]])
         return tang * self.cfg.max_speed + np.clip(2.0 * (d - self.det), -1.0, 1.0) * nrm
 
     def _circuit_step(self, n, circ):
@@ -319,8 +333,10 @@ class MorseDecompCoverage:
         tk = self.task
         if tk.get('circuit') is not circ:
             held = circ.pop('suspended', None)       # cusp_detour: resume where it was left
-            self.task = tk = dict(held[1]) if held else {'circuit': circ}
-            self._go_to(held[0] if held else circ['start'], then='boundary')
+            back = circ.get('reverse_from')          # circuit_join: the way the first half
+            self.task = tk = dict(held[1]) if held else {'circuit': circ,  # did not go
+                                                         'side': -1 if back else 1}
+            self._go_to(held[0] if held else back or circ['start'], then='boundary')
             return None
         if self.mode == 'transit':
             return None
@@ -341,6 +357,9 @@ class MorseDecompCoverage:
             d, a = self.mins[0]               # the followed obstacle's point
             circ.setdefault('wall', []).append((self.pose[0] + d * math.cos(a),
                                                 self.pose[1] + d * math.sin(a)))
+            if self.cfg.circuit_join and 'closed_at' not in tk and tk['length'] > 1.5 and \
+                    self._joins_known(circ, tk):
+                return self._joined(n, circ, tk)
         back = math.dist(tk['origin'], self.pose[:2])
         passed = tk['length'] > 3.0 and tk.get('back', math.inf) < 0.8 and back > tk['back']
         tk['back'] = back                     # closest pass by the start counts as back
@@ -350,21 +369,83 @@ class MorseDecompCoverage:
         # by same_event, so that the Fig. 10 test senses the ones there
         run_on = self.cfg.same_event if self.cfg.handover else 0.0
         if tk['length'] - tk.get('closed_at', math.inf) >= run_on or tk['length'] > 500.0:
-            circ.update(done=True, length=tk['length'], back_at=tk.get('closed_at'))
-            sliver = self._sliver_tips(circ['trace'])
-            self._same_cell(n, circ['trace'])
-            self._beyond(n, circ)
-            if not n.cells:
-                n.cells.append(MorseCell(0, self.pose[:2], +1, opened_by=circ['opened_by']))
-                if sliver:        # narrower than a lap: the circuit has swept it (one lap)
-                    self._close_cell(n, n.cells[0], None, 'the circuit encloses no area: '
-                                     'the cell is narrower than one lap and swept by it')
-                elif self.cfg.circuit_sweeps and self._thin(circ['trace']):
-                    self._close_cell(n, n.cells[0], None, 'every point the circuit encloses '
-                                     'lies within delta of it: swept by the circuit')
+            return self._circuit_done(n, circ, tk)
+        return self._follow_velocity(tk.get('side', 1))
+
+    def _joins_known(self, circ, tk):
+        """Switch ``circuit_join`` (ours): the robot, following a boundary at D = delta, is on
+        a stretch another circuit has followed (within the equal-echo tolerance of its path).
+        A curve at D = delta bounds one vast cell, so that boundary is known from here on:
+        its cusps are sensed and its far side recorded. A circuit's second half (the way the
+        first one did not go round) also stops on the first half's path beyond 1.2 m of its
+        start."""
+        p = np.asarray(self.pose[:2])
+        for m in self.nodes:
+            if m.kind != 'vast':
+                continue
+            for c in m.circuits:
+                pts = c.get('trace', ())
+                if c is circ:
+                    if tk.get('side', 1) > 0:
+                        continue
+                    o = circ['reverse_from']
+                    pts = [q if math.dist(q, o) > 1.2 else None
+                           for q in pts[:circ['first_len']]]
+                if self._near_path(pts, p) < self.cfg.event_tolerance:
+                    return True
+        return False
+
+    @staticmethod
+    def _near_path(pts, p):
+        """Distance from ``p`` to the polyline through ``pts`` (samples 0.3 m apart; a
+        ``None`` or a gap over 0.6 m breaks it)."""
+        best = math.inf
+        for a, b in zip(pts, pts[1:]):
+            if a is None or b is None or abs(a[0] - p[0]) > 1.0 or abs(a[1] - p[1]) > 1.0:
+                continue
+            a, b = np.asarray(a), np.asarray(b)
+            d = b - a
+            dd = float(d @ d)
+            if dd > 0.36:
+                continue
+            t = min(max(float((p - a) @ d) / dd, 0.0), 1.0) if dd > 0 else 0.0
+            best = min(best, float(np.hypot(*(a + t * d - p))))
+        return best
+
+    def _joined(self, n, circ, tk):
+        """The circuit has reached a boundary followed already (``circuit_join``): the first
+        half ends there and the boundary is followed from the circuit's start the other way
+        round, until that half too reaches a known stretch; then the circuit is done."""
+        self._record(self.t_sweep, 'circuit_joined', self.pose,
+                     f'boundary of vast node {n.id} followed already from here')
+        circ['joined'] = True
+        if tk.get('side', 1) > 0:
+            circ.update(reverse_from=tk['origin'], first_len=len(circ['trace']),
+                        first_length=tk['length'])
             self.task, self.mode = {}, None
             return None
-        return self._follow_velocity()
+        tk['length'] += circ.get('first_length', 0.0)
+        return self._circuit_done(n, circ, tk)
+
+    def _circuit_done(self, n, circ, tk):
+        """The circuit has gone round (or, ``circuit_join``, both its halves have reached
+        known boundary): merge the vast nodes whose cusps lie on it, start the slices beyond
+        the obstacles it went round, and open the node's first Morse cell."""
+        circ.update(done=True, length=tk['length'], back_at=tk.get('closed_at'))
+        whole = not circ.get('joined')      # an open stretch encloses nothing
+        sliver = whole and self._sliver_tips(circ['trace'])
+        self._same_cell(n, circ['trace'])
+        self._beyond(n, circ)
+        if not n.cells:
+            n.cells.append(MorseCell(0, self.pose[:2], +1, opened_by=circ['opened_by']))
+            if sliver:        # narrower than a lap: the circuit has swept it (one lap)
+                self._close_cell(n, n.cells[0], None, 'the circuit encloses no area: '
+                                 'the cell is narrower than one lap and swept by it')
+            elif self.cfg.circuit_sweeps and whole and self._thin(circ['trace']):
+                self._close_cell(n, n.cells[0], None, 'every point the circuit encloses '
+                                 'lies within delta of it: swept by the circuit')
+        self.task, self.mode = {}, None
+        return None
 
     def _thin(self, trace, step=0.25, most=4000):
         """Every point the circuit encloses lies within ``delta - overlap`` of the circuit

@@ -37,6 +37,12 @@ class CreateNode:
             self._add_edge(n.id, m.id, xy, f'cusp joins narrow node {m.id}: a traced GVD '
                            'branch of it ends here')
             return
+        v = self._followed_vast(xy) if n.kind == 'narrow' and self.mode == 'gvd' else None
+        if v is not None:
+            self._add_edge(v.id, n.id, xy, f'cusp joins vast node {v.id}: its boundary '
+                           'circuit passed here')
+            self._end_branch('cusp')
+            return
         new = self.create_node('narrow' if n.kind == 'vast' else 'vast', xy, idx)
         self.edges.append((n.id, new.id, xy) if n.kind == 'vast' else (new.id, n.id, xy))
         self._note_dir(xy)
@@ -85,6 +91,20 @@ class CreateNode:
         for m in self.nodes:
             if m.kind == 'narrow' and any(self._arrived(b, xy, near, self._cusp_dir)
                                           for b in m.branches):
+                return m
+        return None
+
+    def _followed_vast(self, xy, within=0.4):
+        """Switch ``circuit_join`` (ours): the vast node whose boundary circuit passed within
+        ``within`` of the cusp ``xy`` sensed while tracing. A cusp lies on the curve
+        D = delta of the one vast cell beyond it (Section IV-B), so that cell is the node
+        the circuit went round: the cusp gives it an edge, and no node is created for a
+        cell known already (one node per cell, Section IV-C)."""
+        if not self.cfg.circuit_join:
+            return None
+        for m in self.nodes:
+            if m.kind == 'vast' and m.merged_into is None and any(
+                    math.dist(q, xy) < within for c in m.circuits for q in c.get('trace', ())):
                 return m
         return None
 
