@@ -13,7 +13,9 @@ Faults: ``dropout_probability`` drops single frames; ``dropout_start``/``dropout
 (sim seconds) blank every body for a window (line of sight lost); ``nan_probability`` sends a
 frame of NaNs (a failed fit). The sensor is clocked by the ground-truth stream (capture on the
 first truth sample at or after each ``1/rate`` tick), so latency resolution is the simulator's
-publish period (5 ms by default).
+publish period, and the sensor captures at most once per period: the nodes' defaults are
+200 Hz and 5 ms (lock-step, ``paramotion fast``); ``launch/fast.launch.xml`` across processes
+publishes every 10 ms and sets ``rate`` to 100 Hz (``tracker_rate``).
 """
 import math
 from collections import deque
