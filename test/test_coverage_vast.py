@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from coverage_pkg.algorithm1 import Branch, Node, PaperConfig, PaperPlanner
+from coverage_pkg.algorithm1 import Branch, MorseCell, Node, PaperConfig, PaperPlanner
 from coverage_pkg.kinematic import run_kinematic
 from coverage_pkg.sonar import SonarRing
 from coverage_pkg.world import world_from_dict
@@ -126,3 +126,28 @@ def test_a_cusp_on_a_followed_boundary_gives_that_vast_node_an_edge(join):
     else:
         assert len(p.nodes) == 3 and p.nodes[2].kind == 'vast'
         assert p.edges == [(2, 1, (5.0, 2.1))] and math.dist(p.nodes[2].anchor, (5.0, 2.1)) < 1e-9
+
+
+@pytest.mark.parametrize('join', [True, False])
+def test_an_obstacle_another_vast_node_followed_is_no_obstacle_inside_the_cell(join):
+    """A lap ends 2 m below a wall whose curve D = delta the circuit of another vast node
+    followed (pillars exactly 2 delta apart join two vast cells at a point: report.pillar_hall
+    (20.0)). With ``circuit_join`` that boundary is followed already: no critical point, no
+    circuit round it again; without, only the node's own circuits count and the lap meets an
+    obstacle inside the cell."""
+    p = _planner(circuit_join=join)
+    p.on_odometry(0.0, 5.0, 3.0, 0.0)
+    p.angles, p.ranges = p.mount.copy(), np.full(16, 4.5)
+    p.ranges[int(np.argmin(np.abs(np.remainder(p.angles - math.pi / 2 + math.pi,
+                                               2 * math.pi) - math.pi)))] = 2.0
+    xs = np.arange(0.0, 10.0, 0.3)
+    other = Node(0, 'vast', (0.0, 3.0), covered=True, circuits=[
+        {'start': (0.0, 3.0), 'done': True, 'trace': [(x, 3.0) for x in xs],
+         'wall': [(x, 5.0) for x in xs]}])
+    cell = MorseCell(0, (5.0, 3.0), 1, status='covering')
+    here = Node(1, 'vast', (5.0, 3.0), cells=[cell])
+    p.nodes += [other, here]
+    p.current, p.t_sweep = 1, 1.0
+    p._island(here, cell, 1)
+    assert len(here.circuits) == (0 if join else 1)
+    assert sum(e[1] == 'critical' for e in p.events) == (0 if join else 1)

@@ -271,13 +271,16 @@ class MorseDecompCoverage:
         the lap ends on a circuit's path with ``p`` within delta (plus the equal-echo
         tolerance) of it: there the circuit kept D = delta, so ``p`` was among its closest
         obstacles (the cones' spacing can leave such a point unrecorded at a corner of the
-        circuit)."""
+        circuit). With ``circuit_join`` (ours) a circuit of any vast node counts: a curve
+        D = delta is one boundary, whichever node followed it."""
         if 'critical' in self.cfg.without:
             return
         d = self.echo(math.pi / 2 * direction)
         p = (self.pose[0], self.pose[1] + direction * d)
         near = self.det + self.cfg.event_tolerance
-        for c in n.circuits:                # followed already, or about to be
+        circuits = [c for m in self.nodes if m.kind == 'vast' for c in m.circuits] \
+            if self.cfg.circuit_join else n.circuits    # any vast node's: one boundary
+        for c in circuits:                  # followed already, or about to be
             if (not c['done'] and math.dist(c['start'], p) < self.det + 0.5) or any(
                     math.dist(q, p) < 0.6 for q in c.get('wall', ())) or any(
                     math.dist(q, self.pose[:2]) < 0.5 and math.dist(q, p) <= near
