@@ -10,8 +10,9 @@ the same planner and sonar model as the ROS graph):
   sim and wall time, planner time per sweep, and for the paper planner the share of path
   driven by its primitives (lap, boundary, GVD) rather than transit;
 * the paper planner's selectable modes (:data:`MODES`: Algorithm 1's pseudocode order,
-  ``handover`` off; meet points read from one sweep, ``meet_scan`` off; ``circuit_sweeps``
-  and ``cusp_detour``, ours) on the same generated
+  ``handover`` off; meet points read from one sweep, ``meet_scan`` off; circuits driven
+  round, ``circuit_join`` off; ``circuit_sweeps`` and ``cusp_detour``, ours) on the same
+  generated
   worlds beside the default
   (Algorithm 1 in Fig. 13's order);
 * the ablations of the paper planner, each event's sensing switched off (``without``) on the
@@ -60,6 +61,8 @@ MODES = (
     ('one_sweep_meets', {'meet_scan': False}, "a meet point's branches read from the one sweep "
      'that sensed it (the default halts there and turns the ring through one cone spacing, '
      'ours)'),
+    ('circuits_round', {'circuit_join': False}, 'every boundary circuit driven round to its '
+     'start, over boundary other circuits followed (the default ends it there, ours)'),
     ('circuit_sweeps', {'circuit_sweeps': True}, 'ours: no laps in a vast cell every point of '
      'which lies within delta - 0.2 m of its closed boundary circuit'),
     ('cusp_detour', {'cusp_detour': True}, 'ours: a narrow node whose cusp the boundary circuit '
