@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.signal import find_peaks
 
 from coverage_pkg.paper.graph_nodes import MorseCell
 
@@ -23,6 +24,8 @@ class MorseDecompCoverage:
     def _morse_step(self, n):
         """MorseDecompCoverage: laps 2 delta apart in the current Morse cell; the moves
         between them follow the boundary at D = delta; critical points close cells."""
+        if 'opening_scan' in self.task:            # a sliver's GVD edges, read as a meet's
+            return self._opening_scan_step(n)
         busy = any(c.status == 'covering' for c in n.cells)
         circ = self.task.get('circuit') or (
             None if busy else next((c for c in n.circuits if not c['done']), None))
@@ -448,7 +451,92 @@ class MorseDecompCoverage:
                 self._close_cell(n, n.cells[0], None, 'every point the circuit encloses '
                                  'lies within delta of it: swept by the circuit')
         self.task, self.mode = {}, None
+        if sliver and self.cfg.sliver_openings and 'cusp' not in self.cfg.without:
+            q = np.asarray(circ['trace'], dtype=float)
+            self.task = {'opening_scan': {'at': tuple(map(float, q.mean(axis=0))),
+                                          'trace': circ['trace'], 't0': self.t_sweep}}
         return None
+
+    def _opening_scan_step(self, n):
+        """Switch ``sliver_openings`` (ours): a vast cell that is a sliver is read like a
+        meet point once its circuit has closed. Every GVD edge leaving a vast cell meets it at
+        a cusp point (Section IV-B), but the Fig. 10 test (the closest obstacle's bearing
+        jumps) misses the cusp of a door that subtends a small angle from D = delta (two
+        jambs 1.2 m apart seen from 2 m: 35 degrees). The robot goes to the middle of the
+        circuit, halts while its ring turns through one cone spacing (as on a meet point,
+        ``meet_scan``), and takes the openings of the range over bearing beyond delta there
+        (:meth:`_cell_openings`) as the GVD edges leaving the cell. An edge leaving along a
+        bearing meets the cell where the circuit (the curve D = delta) reaches farthest
+        that way. An opening along which a GVD edge is traced already (:meth:`_edge_traced`)
+        is an edge of a known node; one with no cusp of the node's edges there
+        (:meth:`_known`: within ``same_event``, on the same edge) is a cusp event at that
+        point, creating its narrow node (CreateNode), which leaves along the opening. No
+        traced branch ends on such an edge, whatever the heading a branch ended with nearby
+        (a trace turns as it enters a small cell): the cusp joins no traced narrow node."""
+        tk = self.task
+        job = tk['opening_scan']
+        if 'scan' not in tk:                       # to the middle of the sliver
+            off = np.asarray(job['at']) - np.asarray(self.pose[:2])
+            d = float(np.hypot(*off))
+            if d > 0.1 and self.t_sweep - job['t0'] < 5.0:
+                return off / d * min(self.cfg.max_speed, 2.0 * d)
+            tk['scan'] = {'yaw': self.pose[2], 'turned': 0.0,
+                          'sweeps': [(self.angles.copy(), self.ranges.copy())]}
+            return np.zeros(2)
+        scan = tk['scan']
+        if scan['turned'] < 2.0 * math.pi / len(self.mount):
+            return np.zeros(2)                     # the ring turns (sweeps: _scan_sweep)
+        self.task, self.mode = {}, None
+        ang = np.concatenate([a for a, _ in scan['sweeps']])
+        rng = np.concatenate([r for _, r in scan['sweeps']])
+        q = np.asarray(job['trace'], dtype=float)
+        for m in self._cell_openings(ang, rng):
+            u = (math.cos(m), math.sin(m))
+            xy = tuple(map(float, q[int(np.argmax(q @ np.asarray(u)))]))
+            if self._edge_traced(xy, u):
+                continue                           # an edge traced already: a known node's
+            self._cusp_dir, self._opening_untraced = float(math.remainder(m, 2 * math.pi)), True
+            self._on_event(self.t_sweep, 'cusp', xy, 'GVD edge leaving a vast cell that is a '
+                           'sliver: an opening of the range over bearing beyond delta from '
+                           'its middle')
+        self._cusp_dir, self._opening_untraced = None, False
+        return None
+
+    def _cell_openings(self, angles, ranges):
+        """Bearings of the GVD edges leaving a vast cell, from a scan at its middle: the
+        peaks of the range over bearing reaching beyond delta and standing out by at least
+        the event tolerance from the dips on either side, each along the middle of its
+        peak's upper half; a peak whose upper half holds another's top is that edge
+        (:meth:`_openings`' rules for a meet point). Its other rule, that two peaks within
+        45 degrees are one edge unless a bearing between them meets an obstacle within
+        delta, does not apply: from inside a vast cell every bearing reaches beyond delta,
+        and a door beside a room's corner is a peak of its own."""
+        ang = np.remainder(np.asarray(angles, dtype=float), 2 * math.pi)
+        r = np.asarray(ranges, dtype=float)
+        r = np.where(np.isfinite(r), r, 0.0)
+        order = np.argsort(ang, kind='stable')
+        ang, r = ang[order], r[order]
+        k = len(r)
+        if k < 3:
+            return []
+        r3 = np.concatenate([r, r, r])
+        a3 = np.concatenate([ang - 2 * math.pi, ang, ang + 2 * math.pi])
+        peaks, props = find_peaks(r3, prominence=self.cfg.event_tolerance)
+        kept = []                                  # (middle, top, lo, hi) per edge
+        for p, prom in zip(peaks, props['prominences']):
+            if not k <= p < 2 * k or r3[p] <= self.det:
+                continue
+            level = max(self.det, r3[p] - prom / 2)
+            i = j = p
+            while i > p - k + 1 and r3[i - 1] > level:
+                i -= 1
+            while j < p + k - 1 and r3[j + 1] > level:
+                j += 1
+            lo, hi, top = float(a3[i]), float(a3[j]), float(a3[p])
+            if not any(lo <= q[1] + s <= hi or q[2] <= top + s <= q[3]
+                       for q in kept for s in (-2 * math.pi, 0.0, 2 * math.pi)):
+                kept.append(((lo + hi) / 2, top, lo, hi))
+        return [float(math.remainder(q[0], 2 * math.pi)) for q in kept]
 
     def _thin(self, trace, step=0.25, most=4000):
         """Every point the circuit encloses lies within ``delta - overlap`` of the circuit

@@ -16,6 +16,9 @@ from coverage_pkg.paper.graph_nodes import Branch, Node
 class CreateNode:
     """Mixin of :class:`coverage_pkg.algorithm1.PaperPlanner`: nodes and cusp edges."""
 
+    _opening_untraced = False   # the cusp being handled lies on an opening of a sliver no
+    #                             traced GVD edge runs along (MorseDecompCoverage)
+
     def create_node(self, kind: str, x: Sequence[float], created_by: int | None = None) -> Node:
         """CreateNode(x, D(x)): a new uncovered node of ``kind`` anchored at ``x``."""
         n = Node(len(self.nodes), kind, (float(x[0]), float(x[1])), created_by)
@@ -28,11 +31,13 @@ class CreateNode:
     def _on_cusp(self, idx, xy):
         """A new cusp point: a node of the other kind beyond it and an edge to it (L, F).
         A cusp sensed from a vast node where a traced GVD branch of a known narrow node ended
-        is that narrow cell's cusp: the edge joins the known node, no node is created."""
+        is that narrow cell's cusp: the edge joins the known node, no node is created (not
+        for an opening of a sliver along which no GVD edge is traced)."""
         n = self.nodes[self.current] if self.current is not None else None
         if n is None:
             return
-        m = self._traced_narrow(xy) if n.kind == 'vast' else None
+        m = self._traced_narrow(xy) if n.kind == 'vast' and not self._opening_untraced \
+            else None
         if m is not None:
             self._add_edge(n.id, m.id, xy, f'cusp joins narrow node {m.id}: a traced GVD '
                            'branch of it ends here')
