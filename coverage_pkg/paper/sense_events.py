@@ -51,8 +51,10 @@ class EventSensing:
             return
         prev, self._meet_cand = self._meet_cand, m
         if prev is not None and math.dist(prev[:2], m[:2]) <= 0.15:
+            self._meet_rho = (m[2] + prev[2]) / 2      # the meet scan's closest obstacles
             self._on_event(t, 'meet', ((m[0] + prev[0]) / 2, (m[1] + prev[1]) / 2),
                            f'three closest obstacles at {m[2]:.2f} m')
+            self._meet_rho = None
 
     def _on_event(self, t, kind, xy, detail):
         """A sensed (or injected) event: dropped if switched off or filtered, merged with a

@@ -233,7 +233,8 @@ class TraceGVD:
         if n is None or n.kind != 'narrow' or self.task.get('branch') is None:
             return
         n.meets.append((float(xy[0]), float(xy[1]), idx))
-        scan = {'meet': idx, 'xy': tuple(xy), 'yaw': self.pose[2], 'turned': 0.0,
+        rho = getattr(self, '_meet_rho', None)
+        scan = {'meet': idx, 'xy': tuple(xy), 'rho': rho, 'yaw': self.pose[2], 'turned': 0.0,
                 'sweeps': [(self.angles.copy(), self.ranges.copy())]}
         if self.cfg.meet_scan:
             self.task['scan'] = scan
@@ -269,7 +270,8 @@ class TraceGVD:
         back = math.atan2(-head[1], -head[0])
         ang = np.concatenate([a for a, _ in scan['sweeps']])
         rng = np.concatenate([r for _, r in scan['sweeps']])
-        out = self._openings(ang, rng, [back], self.det)
+        out = self._openings(ang, rng, [back], self.det,
+                             self._meet_obstacles(ang, rng, scan['xy'], scan.get('rho')))
         if not out:
             return
         a = math.atan2(head[1], head[0])
@@ -286,7 +288,23 @@ class TraceGVD:
         self.task['meet'] = scan['meet']
         self.task['leave'] = self.pose[:2]
 
-    def _openings(self, angles, ranges, exclude, beyond):
+    def _meet_obstacles(self, angles, ranges, xy, rho):
+        """Which echoes of a scan taken near meet point ``xy`` lie on its closest obstacles:
+        within ``rho`` (the three closest obstacles' distance from it) plus the event
+        tolerance of ``xy``. The robot halts where it sensed the meet point, up to half a
+        metre off it; from there a closest obstacle of the meet point (a door's jamb beside a
+        corner) can lie beyond delta, and every GVD edge leaving the meet point lies between
+        two of them. None without ``rho``."""
+        if rho is None:
+            return None
+        ang = np.asarray(angles, dtype=float)
+        r = np.asarray(ranges, dtype=float)
+        hit = np.isfinite(r) & (r < self.max_range - 1e-6)
+        ex = self.pose[0] + np.where(hit, r, 0.0) * np.cos(ang) - xy[0]
+        ey = self.pose[1] + np.where(hit, r, 0.0) * np.sin(ang) - xy[1]
+        return hit & (np.hypot(ex, ey) <= rho + self.cfg.event_tolerance)
+
+    def _openings(self, angles, ranges, exclude, beyond, close=None):
         """Bearings of the GVD edges leaving the place a scan was taken from: the peaks of the
         range over bearing (a gap between two closest obstacles) reaching beyond ``beyond``
         and standing out by at least the event tolerance from the dips on either side (echo
@@ -296,12 +314,14 @@ class TraceGVD:
         the edge the robot came along. Two peaks are one edge when one's upper half holds the
         other's top (a far wall's corners seen through one door), or when they lie
         within 45 degrees of each other and look through one opening (no bearing between
-        them meets an obstacle within ``beyond``); the first is kept."""
+        them meets an obstacle within ``beyond``, nor one of the echoes ``close`` marks: a
+        closest obstacle of the meet point the scan was taken near); the first is kept."""
         ang = np.remainder(np.asarray(angles, dtype=float), 2 * math.pi)
         r = np.asarray(ranges, dtype=float)
         r = np.where(np.isfinite(r), r, 0.0)
         order = np.argsort(ang, kind='stable')
         ang, r = ang[order], r[order]
+        sep = r <= beyond if close is None else (r <= beyond) | np.asarray(close)[order]
         k = len(r)
         if k < 3 or not (r > beyond).any():
             return []
@@ -330,20 +350,21 @@ class TraceGVD:
                 continue
             if not any(inside(top, q[2], q[3]) or inside(q[1], lo, hi) or
                        (abs(math.remainder(mid - q[0], 2 * math.pi)) <= math.radians(45) and
-                        self._one_opening(r, ang, mid, q[0], beyond)) for q in kept):
+                        self._one_opening(sep, ang, mid, q[0])) for q in kept):
                 kept.append((mid, top, lo, hi))
         return [q[0] for q in kept]
 
     @staticmethod
-    def _one_opening(r, ang, b, o, beyond):
-        """Every cone between bearings ``b`` and ``o`` (the shorter way round) reaches
-        beyond ``beyond``: the two maxima look through one opening. A cone between them
-        that meets an obstacle within ``beyond`` separates two openings, two GVD edges."""
+    def _one_opening(sep, ang, b, o):
+        """No cone between bearings ``b`` and ``o`` (the shorter way round) is marked in
+        ``sep`` (an obstacle within delta, or a closest obstacle of the meet point): the two
+        maxima look through one opening. A cone between them that meets such an obstacle
+        separates two openings, two GVD edges."""
         span = math.remainder(o - b, 2 * math.pi)
         rel = np.remainder(ang - b, 2 * math.pi) if span > 0 else \
             np.remainder(b - ang, 2 * math.pi)
         between = (rel > 1e-6) & (rel < abs(span) - 1e-6)
-        return bool(np.all(r[between] > beyond))
+        return not bool(np.any(sep[between]))
 
     def _end_branch(self, how):
         br = self.task.get('branch')
