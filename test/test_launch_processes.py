@@ -61,7 +61,7 @@ def test_fast_graph_across_processes_holds_the_feed_within_spec(tmp_path):
     if CHECKED_UNDER_ROS2_LAUNCH:
         assert n > 0
         return
-    assert n > 120
+    assert n > 60       # of the 80 feed poses in the 0.8 s window (one per 10 ms period)
     assert rms_mm < 4.0 and rms_deg < 0.1, \
         f'feed RMS {rms_mm:.2f} mm, {rms_deg:.3f} deg across processes (spec 4 mm, 0.1 deg)'
 
