@@ -104,11 +104,12 @@ class PaperConfig:
     meet_scan: bool = True          # ours: on a meet point the robot halts and turns its
     #                                 ring through one cone spacing before it reads the
     #                                 branches (False: from the one sweep that sensed it)
-    sliver_openings: bool = True    # ours: a vast cell that is a sliver is read like a
-    #                                 meet point once its circuit closes: each opening of
-    #                                 the range over bearing beyond delta from its middle
-    #                                 with no cusp of the node's edges on it is a cusp
-    #                                 (False: only the cusps the circuit senses)
+    sliver_openings: bool = True    # ours: a vast cell that is a sliver within delta / 2
+    #                                 of its middle is read like a meet point once its
+    #                                 circuit closes: each opening of the range over bearing
+    #                                 beyond delta from its middle with no cusp of the
+    #                                 node's edges on it is a cusp (False: only the cusps
+    #                                 the circuit senses)
 
     def detector_range(self) -> float:
         """Range of the detector used for coverage: delta."""

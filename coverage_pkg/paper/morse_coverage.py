@@ -451,15 +451,18 @@ class MorseDecompCoverage:
                 self._close_cell(n, n.cells[0], None, 'every point the circuit encloses '
                                  'lies within delta of it: swept by the circuit')
         self.task, self.mode = {}, None
-        if sliver and self.cfg.sliver_openings and 'cusp' not in self.cfg.without:
-            q = np.asarray(circ['trace'], dtype=float)
-            self.task = {'opening_scan': {'at': tuple(map(float, q.mean(axis=0))),
+        q = np.asarray(circ['trace'], dtype=float)
+        mid = q.mean(axis=0)
+        if sliver and self.cfg.sliver_openings and 'cusp' not in self.cfg.without and \
+                float(np.hypot(*(q - mid).T).max()) <= 0.5 * self.det:
+            self.task = {'opening_scan': {'at': tuple(map(float, mid)),
                                           'trace': circ['trace'], 't0': self.t_sweep}}
         return None
 
     def _opening_scan_step(self, n):
-        """Switch ``sliver_openings`` (ours): a vast cell that is a sliver is read like a
-        meet point once its circuit has closed. Every GVD edge leaving a vast cell meets it at
+        """Switch ``sliver_openings`` (ours): a vast cell that is a sliver no longer than
+        delta (its circuit within delta / 2 of its middle) is a place, read like a meet point
+        once its circuit has closed. Every GVD edge leaving a vast cell meets it at
         a cusp point (Section IV-B), but the Fig. 10 test (the closest obstacle's bearing
         jumps) misses the cusp of a door that subtends a small angle from D = delta (two
         jambs 1.2 m apart seen from 2 m: 35 degrees). The robot goes to the middle of the
@@ -472,7 +475,10 @@ class MorseDecompCoverage:
         (:meth:`_known`: within ``same_event``, on the same edge) is a cusp event at that
         point, creating its narrow node (CreateNode), which leaves along the opening. No
         traced branch ends on such an edge, whatever the heading a branch ended with nearby
-        (a trace turns as it enters a small cell): the cusp joins no traced narrow node."""
+        (a trace turns as it enters a small cell): the cusp joins no traced narrow node. A
+        longer sliver is a stretch of GVD edge where D > delta: its tips are its cusps
+        (:meth:`_sliver_tips`), and its middle lies beyond delta / 2 of the robot that has
+        closed its circuit."""
         tk = self.task
         job = tk['opening_scan']
         if 'scan' not in tk:                       # to the middle of the sliver
