@@ -4,12 +4,13 @@ The room is 4.37 m square, 2 delta + 0.37 m wide (delta = 2 m), the shape of gen
 the robot starts by its exit at the bottom (a corridor 1.54 m wide, a dead end below) and a
 corridor 1.21 m wide leaves its right wall eastwards to a dead end at x 11.75. The vast cell
 (D > delta) is a small patch in the room's middle whose boundary circuit encloses no area.
-Its Fig. 10 test senses the cusps of the room's four corners and of the exit below, not the
-one of the corridor: from D = delta the corridor's jambs lie 35 degrees apart, and the
-closest obstacle's bearing jumps by less than the test's 45 degrees. Every GVD edge leaving a
-vast cell meets it at a cusp (Section IV-B); the scan from the sliver's middle reads the
-corridor's edge as an opening of the range over bearing beyond delta, and its cusp creates
-the narrow node that traces the corridor.
+Its Fig. 10 test (the closest obstacle's bearing jumps) gives the corridor and the room's
+upper right corner one node: their cusps lie within 0.5 m of one another, the jump between
+the jambs is about the test's 45 degrees, and the cusp sensed there leads between the upper
+jamb and the top wall (that sweep's two closest obstacles), into the corner; the other reads
+as the same edge. Every GVD edge leaving a vast cell meets it at a cusp (Section IV-B); the
+scan from the sliver's middle reads the corridor's edge as an opening of the range over
+bearing beyond delta, and its cusp creates the narrow node that traces the corridor.
 """
 import math
 

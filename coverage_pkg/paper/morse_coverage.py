@@ -463,9 +463,12 @@ class MorseDecompCoverage:
         """Switch ``sliver_openings`` (ours): a vast cell that is a sliver no longer than
         delta (its circuit within delta / 2 of its middle) is a place, read like a meet point
         once its circuit has closed. Every GVD edge leaving a vast cell meets it at
-        a cusp point (Section IV-B), but the Fig. 10 test (the closest obstacle's bearing
-        jumps) misses the cusp of a door that subtends a small angle from D = delta (two
-        jambs 1.2 m apart seen from 2 m: 35 degrees). The robot goes to the middle of the
+        a cusp point (Section IV-B), but on a small cell the circuit's Fig. 10 test (the
+        closest obstacle's bearing jumps) can give two edges one node: a narrow door beside
+        a corner has its cusp within ``same_event`` of the corner's, the jump between its
+        jambs is about the test's 45 degrees, and the cusp sensed there leads between that
+        sweep's two closest obstacles (a jamb and the wall beyond it: the corner's edge),
+        so the other cusp reads as the same edge. The robot goes to the middle of the
         circuit, halts while its ring turns through one cone spacing (as on a meet point,
         ``meet_scan``), and takes the openings of the range over bearing beyond delta there
         (:meth:`_cell_openings`) as the GVD edges leaving the cell. An edge leaving along a
