@@ -25,6 +25,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike
 from scipy import ndimage
+from scipy.signal import find_peaks
 
 # ------------------------------------------------------------------ range-ring (sensor) view
 
@@ -179,6 +180,40 @@ def meet_from_ring(xy: Sequence[float], ranges: ArrayLike, angles: ArrayLike,
     if not np.all(np.isfinite(s)) or s[2] <= 0 or float(np.hypot(s[0], s[1])) > max_shift:
         return None
     return (float(xy[0] + s[0]), float(xy[1] + s[1]), float(s[2]))
+
+
+def range_peaks(angles: ArrayLike, ranges: ArrayLike, beyond: float, prominence: float
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[tuple[float, float, float]]]:
+    """Openings of a scan (bearings in any order, possibly from several sweeps): the peaks of
+    the range over bearing reaching beyond ``beyond`` and standing out by at least
+    ``prominence`` from the dips on either side, each as the bearings (lo, hi) bounding its
+    upper half (above the greater of ``beyond`` and half its prominence below its top) and
+    its top's bearing. lo may lie below 0 and hi above 2 pi (the scan wraps round). Also
+    returns the sorting order and the scan sorted by bearing in [0, 2 pi) (non-finite
+    ranges as 0): (order, bearings, ranges, peaks)."""
+    ang = np.remainder(np.asarray(angles, dtype=float), 2 * math.pi)
+    r = np.asarray(ranges, dtype=float)
+    r = np.where(np.isfinite(r), r, 0.0)
+    order = np.argsort(ang, kind='stable')
+    ang, r = ang[order], r[order]
+    k = len(r)
+    if k < 3 or not (r > beyond).any():
+        return order, ang, r, []
+    r3 = np.concatenate([r, r, r])
+    a3 = np.concatenate([ang - 2 * math.pi, ang, ang + 2 * math.pi])
+    peaks, props = find_peaks(r3, prominence=prominence)
+    out = []
+    for p, prom in zip(peaks, props['prominences']):
+        if not k <= p < 2 * k or r3[p] <= beyond:
+            continue
+        level = max(beyond, r3[p] - prom / 2)
+        i = j = p
+        while i > p - k + 1 and r3[i - 1] > level:
+            i -= 1
+        while j < p + k - 1 and r3[j + 1] > level:
+            j += 1
+        out.append((float(a3[i]), float(a3[j]), float(a3[p])))
+    return order, ang, r, out
 
 
 def gvd_order(ranges: ArrayLike, angles: ArrayLike, tol: float,

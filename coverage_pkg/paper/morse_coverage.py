@@ -13,8 +13,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.signal import find_peaks
 
+from coverage_pkg import gvd as gvdmod
 from coverage_pkg.paper.graph_nodes import MorseCell
 
 
@@ -520,28 +520,9 @@ class MorseDecompCoverage:
         45 degrees are one edge unless a bearing between them meets an obstacle within
         delta, does not apply: from inside a vast cell every bearing reaches beyond delta,
         and a door beside a room's corner is a peak of its own."""
-        ang = np.remainder(np.asarray(angles, dtype=float), 2 * math.pi)
-        r = np.asarray(ranges, dtype=float)
-        r = np.where(np.isfinite(r), r, 0.0)
-        order = np.argsort(ang, kind='stable')
-        ang, r = ang[order], r[order]
-        k = len(r)
-        if k < 3:
-            return []
-        r3 = np.concatenate([r, r, r])
-        a3 = np.concatenate([ang - 2 * math.pi, ang, ang + 2 * math.pi])
-        peaks, props = find_peaks(r3, prominence=self.cfg.event_tolerance)
+        *_, peaks = gvdmod.range_peaks(angles, ranges, self.det, self.cfg.event_tolerance)
         kept = []                                  # (middle, top, lo, hi) per edge
-        for p, prom in zip(peaks, props['prominences']):
-            if not k <= p < 2 * k or r3[p] <= self.det:
-                continue
-            level = max(self.det, r3[p] - prom / 2)
-            i = j = p
-            while i > p - k + 1 and r3[i - 1] > level:
-                i -= 1
-            while j < p + k - 1 and r3[j + 1] > level:
-                j += 1
-            lo, hi, top = float(a3[i]), float(a3[j]), float(a3[p])
+        for lo, hi, top in peaks:
             if not any(lo <= q[1] + s <= hi or q[2] <= top + s <= q[3]
                        for q in kept for s in (-2 * math.pi, 0.0, 2 * math.pi)):
                 kept.append(((lo + hi) / 2, top, lo, hi))

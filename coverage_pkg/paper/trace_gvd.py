@@ -11,8 +11,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.signal import find_peaks
 
+from coverage_pkg import gvd as gvdmod
 from coverage_pkg.paper.graph_nodes import Branch
 
 
@@ -316,33 +316,15 @@ class TraceGVD:
         within 45 degrees of each other and look through one opening (no bearing between
         them meets an obstacle within ``beyond``, nor one of the echoes ``close`` marks: a
         closest obstacle of the meet point the scan was taken near); the first is kept."""
-        ang = np.remainder(np.asarray(angles, dtype=float), 2 * math.pi)
-        r = np.asarray(ranges, dtype=float)
-        r = np.where(np.isfinite(r), r, 0.0)
-        order = np.argsort(ang, kind='stable')
-        ang, r = ang[order], r[order]
+        order, ang, r, peaks = gvdmod.range_peaks(angles, ranges, beyond,
+                                                  self.cfg.event_tolerance)
         sep = r <= beyond if close is None else (r <= beyond) | np.asarray(close)[order]
-        k = len(r)
-        if k < 3 or not (r > beyond).any():
-            return []
-        r3 = np.concatenate([r, r, r])
-        a3 = np.concatenate([ang - 2 * math.pi, ang, ang + 2 * math.pi])
-        peaks, props = find_peaks(r3, prominence=self.cfg.event_tolerance)
 
         def inside(x, lo, hi):
             return math.remainder(x - lo, 2 * math.pi) % (2 * math.pi) <= hi - lo
 
         kept = []                                  # (middle, top, lo, hi) per edge
-        for p, prom in zip(peaks, props['prominences']):
-            if not k <= p < 2 * k or r3[p] <= beyond:
-                continue
-            level = max(beyond, r3[p] - prom / 2)
-            i = j = p
-            while i > p - k + 1 and r3[i - 1] > level:
-                i -= 1
-            while j < p + k - 1 and r3[j + 1] > level:
-                j += 1
-            lo, hi, top = float(a3[i]), float(a3[j]), float(a3[p])
+        for lo, hi, top in peaks:
             mid = ((lo + hi) / 2) % (2 * math.pi)
             if any(inside(e, lo, hi) or
                    abs(math.remainder(mid - e, 2 * math.pi)) < math.radians(60)
