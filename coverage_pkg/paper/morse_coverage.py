@@ -489,15 +489,13 @@ class MorseDecompCoverage:
             d = float(np.hypot(*off))
             if d > 0.1 and self.t_sweep - job['t0'] < 5.0:
                 return off / d * min(self.cfg.max_speed, 2.0 * d)
-            tk['scan'] = {'yaw': self.pose[2], 'turned': 0.0,
-                          'sweeps': [(self.angles.copy(), self.ranges.copy())]}
+            tk['scan'] = self._new_scan()
             return np.zeros(2)
         scan = tk['scan']
-        if scan['turned'] < 2.0 * math.pi / len(self.mount):
+        if not self._scan_turned(scan):
             return np.zeros(2)                     # the ring turns (sweeps: _scan_sweep)
         self.task, self.mode = {}, None
-        ang = np.concatenate([a for a, _ in scan['sweeps']])
-        rng = np.concatenate([r for _, r in scan['sweeps']])
+        ang, rng = self._scan_echoes(scan)
         q = np.asarray(job['trace'], dtype=float)
         for m in self._cell_openings(ang, rng):
             u = (math.cos(m), math.sin(m))

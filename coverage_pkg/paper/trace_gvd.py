@@ -234,15 +234,30 @@ class TraceGVD:
             return
         n.meets.append((float(xy[0]), float(xy[1]), idx))
         rho = getattr(self, '_meet_rho', None)
-        scan = {'meet': idx, 'xy': tuple(xy), 'rho': rho, 'yaw': self.pose[2], 'turned': 0.0,
-                'sweeps': [(self.angles.copy(), self.ranges.copy())]}
+        scan = self._new_scan(meet=idx, xy=tuple(xy), rho=rho)
         if self.cfg.meet_scan:
             self.task['scan'] = scan
         else:
             self._meet_branches(n, scan)
 
+    def _new_scan(self, **data):
+        """A scan taken from here while the ring turns (``task['scan']``, fed by
+        :meth:`_scan_sweep`): this moment's sweep, and ``data``."""
+        return dict(data, yaw=self.pose[2], turned=0.0,
+                    sweeps=[(self.angles.copy(), self.ranges.copy())])
+
+    def _scan_turned(self, scan):
+        """The ring has turned through one cone spacing since the scan began."""
+        return scan['turned'] >= 2.0 * math.pi / len(self.mount)
+
+    @staticmethod
+    def _scan_echoes(scan):
+        """Bearings and ranges of all the sweeps of a scan."""
+        return (np.concatenate([a for a, _ in scan['sweeps']]),
+                np.concatenate([r for _, r in scan['sweeps']]))
+
     def _scan_sweep(self):
-        """A sweep taken while the robot turns on a meet point: kept with its bearings."""
+        """A sweep taken while the robot turns for a scan: kept with its bearings."""
         scan = self.task.get('scan')
         if scan is not None:
             scan['turned'] += abs(math.remainder(self.pose[2] - scan['yaw'], 2 * math.pi))
@@ -254,7 +269,7 @@ class TraceGVD:
         spacing, the openings of all the sweeps taken there give the branches
         (:meth:`_meet_branches`). None when the scan has just ended."""
         scan = self.task['scan']
-        if scan['turned'] < 2.0 * math.pi / len(self.mount):
+        if not self._scan_turned(scan):
             return np.zeros(2)
         del self.task['scan']
         self._meet_branches(n, scan)
@@ -268,8 +283,7 @@ class TraceGVD:
         Fig. 13's Mp1 ('The robot chooses the lower edge', arriving along +x)."""
         head = np.asarray(self.task.get('heading') or self.task['branch'].heading or (1.0, 0.0))
         back = math.atan2(-head[1], -head[0])
-        ang = np.concatenate([a for a, _ in scan['sweeps']])
-        rng = np.concatenate([r for _, r in scan['sweeps']])
+        ang, rng = self._scan_echoes(scan)
         out = self._openings(ang, rng, [back], self.det,
                              self._meet_obstacles(ang, rng, scan['xy'], scan.get('rho')))
         if not out:
