@@ -366,7 +366,8 @@ class TraceGVD:
         br = self.task.get('branch')
         if br is not None:
             br.end, br.end_xy = how, (float(self.pose[0]), float(self.pose[1]))
-            br.end_heading = self.task.get('heading')
+            # off its start the robot drives along the branch's own bearing
+            br.end_heading = self.task.get('heading') or br.heading
             self._record(self.t_sweep, 'branch_end', self.pose, f'GVD branch ends: {how}')
         self.task, self.mode = {}, None
         return None
