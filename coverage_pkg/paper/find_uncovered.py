@@ -60,6 +60,12 @@ class TracedPaths:
                 return best[1]
         return None
 
+    def passes(self, xy: Sequence[float], within: float, before: int | None = None) -> bool:
+        """A sample (of the first ``before``, if given) lies within ``within`` of ``xy``."""
+        end = len(self.xy) if before is None else before
+        return any(j < end and math.dist(self.xy[j], xy) < within
+                   for j in self._near_point(xy, within))
+
     def _near_point(self, xy, reach):
         k = int(math.ceil(reach / self.bucket))
         bx, by = int(xy[0] // self.bucket), int(xy[1] // self.bucket)

@@ -188,11 +188,20 @@ class TraceGVD:
         """A GVD edge ends at an obstacle ahead; a gap between closest obstacles beyond
         delta off the way back (a door, a corridor opening next to the corner) is another
         GVD edge joining this one at a meet point here, which the three-echo test did not
-        place: it becomes a branch of the node (a meet event)."""
+        place: it becomes a branch of the node (a meet event). The way back is the edge's
+        last heading reversed; where no peak of the range holds that bearing but one holds
+        the bearing to the path 1.5 m behind, the edge curved into a corner near its end
+        (past a meet point the ring did not sense), and only that peak is the way back: a
+        gap beside it (a room opening off a corridor's end) is a branch."""
         if 'meet' in self.cfg.without:
             return
-        back = math.atan2(-heading[1], -heading[0])
-        for b in self._openings(self.angles, self.ranges, [back], self.det):
+        back, way = math.atan2(-heading[1], -heading[0]), self._way_back(heading)
+        _, _, _, peaks = gvdmod.range_peaks(self.angles, self.ranges, self.det,
+                                            self.cfg.event_tolerance)
+        curved = not any(self._holds(back, lo, hi) for lo, hi, _ in peaks) and \
+            any(self._holds(way, lo, hi) for lo, hi, _ in peaks)
+        for b in self._openings(self.angles, self.ranges, [way] if curved else [back],
+                                self.det, held_first=curved):
             if any(math.dist(q.start, self.pose[:2]) < 1.0 and q.heading is not None and
                    abs(math.remainder(math.atan2(q.heading[1], q.heading[0]) - b,
                                       2 * math.pi)) < math.radians(45) for q in n.branches):
@@ -206,12 +215,28 @@ class TraceGVD:
             n.meets.append((float(self.pose[0]), float(self.pose[1]), idx))
             n.branches.append(Branch(self.pose[:2], (math.cos(b), math.sin(b)), idx))
 
-    def _been_along(self, bearing):
-        """The robot's traced path passes 0.7 m or 1.4 m out along ``bearing``."""
+    def _way_back(self, heading, back=1.5):
+        """Bearing from here to the robot's path ``back`` m behind (-``heading`` when the
+        path is shorter): the way the GVD edge came, also where it curved in its last metre
+        (into a corner's edge past a meet point the ring did not sense)."""
+        xy, run = self.paths.xy, 0.0
+        for j in range(len(xy) - 1, 0, -1):
+            run += math.dist(xy[j], xy[j - 1])
+            if run >= back:
+                return math.atan2(xy[j - 1][1] - self.pose[1], xy[j - 1][0] - self.pose[0])
+        return math.atan2(-heading[1], -heading[0])
+
+    def _been_along(self, bearing, recent=1.5):
+        """The robot's path passes 0.7 m or 1.4 m out along ``bearing``; its last
+        ``recent`` m, the way it came (excluded as such), do not count: where the edge curved
+        near its end they pass beside a gap that opens off the way back."""
+        xy, run, last = self.paths.xy, 0.0, len(self.paths.xy)
+        while last > 1 and run < recent:
+            run += math.dist(xy[last - 1], xy[last - 2])
+            last -= 1
         for s in (0.7, 1.4):
             q = (self.pose[0] + s * math.cos(bearing), self.pose[1] + s * math.sin(bearing))
-            j = self.paths.nearest(q)
-            if j is not None and math.dist(self.paths.xy[j], q) < 0.5:
+            if self.paths.passes(q, 0.5, before=last):
                 return True
         return False
 
@@ -318,7 +343,7 @@ class TraceGVD:
         ey = self.pose[1] + np.where(hit, r, 0.0) * np.sin(ang) - xy[1]
         return hit & (np.hypot(ex, ey) <= rho + self.cfg.event_tolerance)
 
-    def _openings(self, angles, ranges, exclude, beyond, close=None):
+    def _openings(self, angles, ranges, exclude, beyond, close=None, held_first=False):
         """Bearings of the GVD edges leaving the place a scan was taken from: the peaks of the
         range over bearing (a gap between two closest obstacles) reaching beyond ``beyond``
         and standing out by at least the event tolerance from the dips on either side (echo
@@ -329,26 +354,39 @@ class TraceGVD:
         other's top (a far wall's corners seen through one door), or when they lie
         within 45 degrees of each other and look through one opening (no bearing between
         them meets an obstacle within ``beyond``, nor one of the echoes ``close`` marks: a
-        closest obstacle of the meet point the scan was taken near); the first is kept."""
+        closest obstacle of the meet point the scan was taken near); the first is kept.
+        With ``held_first``, where some peak's upper half holds a bearing of ``exclude``, only
+        those peaks, and the peaks one edge with them by the first test, are the way come."""
         order, ang, r, peaks = gvdmod.range_peaks(angles, ranges, beyond,
                                                   self.cfg.event_tolerance)
         sep = r <= beyond if close is None else (r <= beyond) | np.asarray(close)[order]
 
-        def inside(x, lo, hi):
-            return math.remainder(x - lo, 2 * math.pi) % (2 * math.pi) <= hi - lo
+        inside = self._holds
+        held = [(lo, hi, top) for lo, hi, top in peaks
+                if any(inside(e, lo, hi) for e in exclude)] if held_first else []
+
+        def came(lo, hi, top, mid):
+            if held:
+                return any(inside(top, q[0], q[1]) or inside(q[2], lo, hi) for q in held)
+            return any(inside(e, lo, hi) or
+                       abs(math.remainder(mid - e, 2 * math.pi)) < math.radians(60)
+                       for e in exclude)
 
         kept = []                                  # (middle, top, lo, hi) per edge
         for lo, hi, top in peaks:
             mid = ((lo + hi) / 2) % (2 * math.pi)
-            if any(inside(e, lo, hi) or
-                   abs(math.remainder(mid - e, 2 * math.pi)) < math.radians(60)
-                   for e in exclude):
+            if came(lo, hi, top, mid):
                 continue
             if not any(inside(top, q[2], q[3]) or inside(q[1], lo, hi) or
                        (abs(math.remainder(mid - q[0], 2 * math.pi)) <= math.radians(45) and
                         self._one_opening(sep, ang, mid, q[0])) for q in kept):
                 kept.append((mid, top, lo, hi))
         return [q[0] for q in kept]
+
+    @staticmethod
+    def _holds(x, lo, hi):
+        """Bearing ``x`` lies in the span from ``lo`` anticlockwise to ``hi``."""
+        return math.remainder(x - lo, 2 * math.pi) % (2 * math.pi) <= hi - lo
 
     @staticmethod
     def _one_opening(sep, ang, b, o):
