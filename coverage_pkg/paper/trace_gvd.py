@@ -305,9 +305,13 @@ class TraceGVD:
         become branches of the narrow node; the robot goes on along the one nearest its
         heading. Two branches equally near it (within half the cones' spacing, the ring's
         bearing resolution) are a symmetric fork: the robot takes the right-hand one, as at
-        Fig. 13's Mp1 ('The robot chooses the lower edge', arriving along +x)."""
+        Fig. 13's Mp1 ('The robot chooses the lower edge', arriving along +x). The edge
+        the robot came along is read from the bearing to its path 1.5 m behind
+        (:meth:`_way_back`), not from its heading: halted up to half a metre past the meet
+        point, it can face off the edge it came along, and an opening within 60 degrees of
+        the reversed heading would be taken for the way come."""
         head = np.asarray(self.task.get('heading') or self.task['branch'].heading or (1.0, 0.0))
-        back = math.atan2(-head[1], -head[0])
+        back = self._way_back(head)
         ang, rng = self._scan_echoes(scan)
         out = self._openings(ang, rng, [back], self.det,
                              self._meet_obstacles(ang, rng, scan['xy'], scan.get('rho')))
