@@ -366,7 +366,11 @@ class TraceGVD:
         other's top (a far wall's corners seen through one door), or when they lie
         within 45 degrees of each other and look through one opening (no bearing between
         them meets an obstacle within ``beyond``, nor one of the echoes ``close`` marks: a
-        closest obstacle of the meet point the scan was taken near); the first is kept.
+        closest obstacle of the meet point the scan was taken near). By the first test the
+        first peak is kept. By the second the edge leaves along the middle of the span
+        covering both peaks' upper halves: an obstacle beyond a door, seen through it,
+        splits the door's one peak in two, and the middle of either part points at a jamb,
+        the middle of the whole at the bisector of the jambs.
         With ``held_first``, where some peak's upper half holds a bearing of ``exclude``, only
         those peaks, and the peaks one edge with them by the first test, are the way come."""
         order, ang, r, peaks = gvdmod.range_peaks(angles, ranges, beyond,
@@ -384,16 +388,31 @@ class TraceGVD:
                        abs(math.remainder(mid - e, 2 * math.pi)) < math.radians(60)
                        for e in exclude)
 
-        kept = []                                  # (middle, top, lo, hi) per edge
+        kept = []                                  # [middle, top, lo, hi] per edge
         for lo, hi, top in peaks:
             mid = ((lo + hi) / 2) % (2 * math.pi)
             if came(lo, hi, top, mid):
                 continue
-            if not any(inside(top, q[2], q[3]) or inside(q[1], lo, hi) or
-                       (abs(math.remainder(mid - q[0], 2 * math.pi)) <= math.radians(45) and
-                        self._one_opening(sep, ang, mid, q[0])) for q in kept):
-                kept.append((mid, top, lo, hi))
+            if any(inside(top, q[2], q[3]) or inside(q[1], lo, hi) for q in kept):
+                continue
+            same = [q for q in kept
+                    if abs(math.remainder(mid - q[0], 2 * math.pi)) <= math.radians(45) and
+                    self._one_opening(sep, ang, mid, q[0])]
+            if not same:
+                kept.append([mid, top, lo, hi])
+                continue
+            self._join_opening(same[0], lo, hi)
         return [q[0] for q in kept]
+
+    @staticmethod
+    def _join_opening(q, lo, hi):
+        """Peak (``lo``, ``hi``) looks through the opening of kept edge ``q`` ([middle, top,
+        lo, hi]): the opening's span grows to cover both peaks' upper halves and the edge
+        leaves along its middle (the bisector of a door's jambs, where an obstacle beyond
+        the door splits its peak in two and either part's middle points at a jamb)."""
+        shift = math.remainder(lo - q[2], 2 * math.pi) - (lo - q[2])
+        q[2], q[3] = min(q[2], lo + shift), max(q[3], hi + shift)
+        q[0] = ((q[2] + q[3]) / 2) % (2 * math.pi)
 
     @staticmethod
     def _holds(x, lo, hi):
