@@ -197,17 +197,16 @@ class TraceGVD:
         delta off the way back (a door, a corridor opening next to the corner) is another
         GVD edge joining this one at a meet point here, which the three-echo test did not
         place: it becomes a branch of the node (a meet event). The way back is the edge's
-        last heading reversed; where no peak of the range holds that bearing but one holds
-        the bearing to the path 1.5 m behind, the edge curved into a corner near its end
-        (past a meet point the ring did not sense), and only that peak is the way back: a
-        gap beside it (a room opening off a corridor's end) is a branch."""
+        last heading reversed, unless the edge curved near its end (:meth:`_curved_end`);
+        then it is the bearing to the path 1.5 m behind: the peak holding it, and only that
+        one, where there is one (a gap beside it, a room opening off a corridor's end, is a
+        branch); else the peaks within 60 degrees of it."""
         if 'meet' in self.cfg.without:
             return
         back, way = math.atan2(-heading[1], -heading[0]), self._way_back(heading)
         _, _, _, peaks = gvdmod.range_peaks(self.angles, self.ranges, self.det,
                                             self.cfg.event_tolerance)
-        curved = not any(self._holds(back, lo, hi) for lo, hi, _ in peaks) and \
-            any(self._holds(way, lo, hi) for lo, hi, _ in peaks)
+        curved = self._curved_end(back, way, peaks)
         for b in self._openings(self.angles, self.ranges, [way] if curved else [back],
                                 self.det, held_first=curved):
             if any(math.dist(q.start, self.pose[:2]) < 1.0 and q.heading is not None and
@@ -222,6 +221,15 @@ class TraceGVD:
                 return
             n.meets.append((float(self.pose[0]), float(self.pose[1]), idx))
             n.branches.append(Branch(self.pose[:2], (math.cos(b), math.sin(b)), idx))
+
+    def _curved_end(self, back, way, peaks):
+        """The traced edge curved into a corner near its end (past a meet point the ring did
+        not sense): no peak of the range (``peaks``) holds the reversed heading ``back``.
+        The edge came straight along its last heading where a peak holds it; where none
+        does, the reversed heading points along the curve's chord, past the unsensed meet
+        point, into the other edge leaving it (the room a door opens into), and the way
+        back is the bearing ``way`` to the path behind, whether or not a peak holds it."""
+        return not any(self._holds(back, lo, hi) for lo, hi, _ in peaks)
 
     def _way_back(self, heading, back=1.5):
         """Bearing from here to the robot's path ``back`` m behind (-``heading`` when the
