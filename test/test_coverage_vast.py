@@ -151,3 +151,29 @@ def test_an_obstacle_another_vast_node_followed_is_no_obstacle_inside_the_cell(j
     p._island(here, cell, 1)
     assert len(here.circuits) == (0 if join else 1)
     assert sum(e[1] == 'critical' for e in p.events) == (0 if join else 1)
+
+
+def test_a_circuit_back_on_its_own_trace_the_same_way_has_gone_round():
+    """A boundary circuit is done where it is back on a stretch of its own trace followed
+    the same way (``_retraced``): up an arm of a bent sliver and back down it, then up again,
+    the robot has gone round the curve D = delta once although it never passed its start
+    (the corner of the bend, 1.5 m off the arm). Coming back down the arm (the other way) is
+    not yet round."""
+    pl = _planner()
+    up = [(4.6, 2.0 + 0.3 * i) for i in range(10)]             # y 2.0 -> 4.7
+    down = [(4.65, 4.7 - 0.3 * i) for i in range(1, 10)]       # y 4.4 -> 2.0
+    circ, tk = {'trace': [], 'runs': []}, {'first': 0}
+    run = 0.0
+    for p in up + down:
+        if circ['trace']:
+            run += math.dist(circ['trace'][-1], p)
+        circ['trace'].append(p)
+        circ['runs'].append(run)
+    tk['length'] = run
+    pl.pose = np.array([4.62, 1.75, 0.0])               # on down the arm: the other way
+    assert not pl._retraced(circ, tk)
+    circ['trace'].append((4.6, 1.85))
+    circ['runs'].append(run + 0.2)
+    pl.pose = np.array([4.6, 2.2, 0.0])                  # up the arm again
+    tk['length'] = run + 0.55
+    assert pl._retraced(circ, tk)

@@ -353,13 +353,17 @@ class MorseDecompCoverage:
             if self.D > self.det + 0.1:           # approach the closest obstacle first
                 d, a = self.mins[0]
                 return np.array([math.cos(a), math.sin(a)]) * self.cfg.max_speed
-            tk.update(origin=self.pose[:2], length=0.0, last=self.pose[:2])
+            tk.update(origin=self.pose[:2], length=0.0, last=self.pose[:2],
+                      first=len(circ.get('trace', ())))
             self._record(self.t_sweep, 'circuit', self.pose, f'boundary of vast node {n.id}')
         tk['length'] += math.dist(tk['last'], self.pose[:2])
         tk['last'] = self.pose[:2]
         trace = circ.setdefault('trace', [])
         if not trace or math.dist(trace[-1], self.pose[:2]) > 0.3:
+            if trace and 'closed_at' not in tk and self._retraced(circ, tk):
+                tk['closed_at'] = tk['length']    # on a stretch followed this way already
             trace.append(self.pose[:2])
+            circ.setdefault('runs', []).append(tk['length'])
             d, a = self.mins[0]               # the followed obstacle's point
             circ.setdefault('wall', []).append((self.pose[0] + d * math.cos(a),
                                                 self.pose[1] + d * math.sin(a)))
@@ -377,6 +381,28 @@ class MorseDecompCoverage:
         if tk['length'] - tk.get('closed_at', math.inf) >= run_on or tk['length'] > 500.0:
             return self._circuit_done(n, circ, tk)
         return self._follow_velocity(tk.get('side', 1))
+
+    def _retraced(self, circ, tk, near=0.3, behind=3.0):
+        """The circuit is back on a stretch of its own trace followed the same way (within
+        ``near`` of a point more than ``behind`` m of circuit back, heading within 45 degrees
+        of the heading there): it has gone round the curve D = delta once. Where that
+        curve is a sliver with a bend, boundary following can turn back and forth in one arm
+        without passing its start again; the circuit is done there too."""
+        trace, runs = circ['trace'], circ.get('runs', ())
+        if len(runs) != len(trace):
+            return False
+        here = np.asarray(self.pose[:2]) - np.asarray(trace[-1])
+        if not np.hypot(*here):
+            return False
+        for i in range(tk.get('first', 0), len(trace) - 1):     # this half's own trace
+            if tk['length'] - runs[i] < behind:
+                break
+            if math.dist(trace[i], self.pose[:2]) < near:
+                step = np.asarray(trace[i + 1]) - np.asarray(trace[i])
+                if float(step @ here) > math.cos(math.radians(45)) * \
+                        float(np.hypot(*step) * np.hypot(*here)):
+                    return True
+        return False
 
     def _joins_known(self, circ, tk):
         """Switch ``circuit_join`` (ours): the robot, following a boundary at D = delta, is on
