@@ -110,6 +110,11 @@ class PaperConfig:
     #                                 beyond delta from its middle with no cusp of the
     #                                 node's edges on it is a cusp (False: only the cusps
     #                                 the circuit senses)
+    cusp_meet: bool = True          # ours: a cusp sensed where three closest obstacles are
+    #                                 equidistant is also a meet point; each gap between
+    #                                 them but the one facing the vast cell is a branch of
+    #                                 its narrow node (a door beside a corner's cusp)
+    #                                 (False: the cusp's one branch)
 
     def detector_range(self) -> float:
         """Range of the detector used for coverage: delta."""
@@ -182,6 +187,8 @@ class PaperPlanner(EventSensing, CreateNode, MorseDecompCoverage, TraceGVD, Find
         self.last = {}                             # no decomposed map (the node's markers)
         self._cusp_dir = None                      # bearing into the narrow cell, this cusp
         self._cusp_dirs = {}                       # cusp (x, y) of an edge -> that bearing
+        self._cusp_meets = set()                   # (narrow node, cusp) read as meet points
+        self._cusp_meets_ev = set()                # ... and the meet events they made
         self._law = None                           # this transit step's control law:
         #                                            'gvd' along a traced GVD edge,
         #                                            'boundary' along a wall at D = delta

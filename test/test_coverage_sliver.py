@@ -30,8 +30,11 @@ ROOM = {'name': 'room_two_exits', 'start': [2.36, 3.88], 'obstacles': [],
 
 @pytest.fixture(scope='module')
 def runs():
-    """The room covered with the switch on (the default) and off."""
-    return {on: run_kinematic(world_from_dict(ROOM), PaperConfig(sliver_openings=on),
+    """The room covered with the switch on (the default) and off, ``cusp_meet`` off in both:
+    the corridor's cusp, where its jambs and the top wall are about equidistant, read as a
+    meet point is a second read of the corridor's edge (test_coverage_cusp_meet.py)."""
+    return {on: run_kinematic(world_from_dict(ROOM), PaperConfig(sliver_openings=on,
+                                                                 cusp_meet=False),
                               max_time=3000) for on in (True, False)}
 
 

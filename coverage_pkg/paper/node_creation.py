@@ -63,6 +63,74 @@ class CreateNode:
                 'origin' in self.task and self.task.get('circuit') is not None:
             self._detour(n, new)
 
+    def _cusp_meet(self, t, xy):
+        """A cusp the ring senses where three closest obstacles are equidistant (within the
+        event tolerance) is also a meet point (Section III), at D = delta: a door's GVD edge
+        and a corner's leave the vast cell there together (a door beside a corner of a small
+        room), and the three-echo test takes no meet point there (its three obstacles lie
+        within half a turn). Every GVD edge leaving a meet point runs between two of its
+        closest obstacles. D grows only away from all three, inside the gap between them
+        wider than half a turn: that gap faces the vast cell; each other gap is a GVD edge
+        into the narrow region, of the narrow node whose cusp edge this is. The edges known
+        there are the gaps nearest them: the cusp's own untraced branch (along the bisector
+        of its two closest obstacles) and a branch traced into the cusp (the way it came);
+        every other gap becomes a branch (a meet event). Read once per cusp edge, from the
+        vast node's side (covered, or handed over to where a traced branch ends). In a small
+        vast cell whose corners' cusps lie within a step of one another, a gap added here
+        can be another cusp's edge; such a branch ends untraced
+        (``TraceGVD._other_cusps_edge``). Switch ``cusp_meet`` (ours, on by default)."""
+        n = self.nodes[self.current] if self.current is not None else None
+        if n is None or n.kind != 'vast' or 'meet' in self.cfg.without or \
+                not self.cfg.cusp_meet:
+            return
+        gaps = self._meet_gaps()
+        if gaps is None:
+            return
+        near = self.cfg.same_event
+        cands = [(math.dist(c, xy), w, c) for v, w, c in self.edges
+                 if self.same_node(v) == self.same_node(n.id) and math.dist(c, xy) < near]
+        if not cands:
+            return
+        _, w, c = min(cands)
+        key = (w, round(float(c[0]), 3), round(float(c[1]), 3))
+        if key in self._cusp_meets or self.nodes[w].kind != 'narrow':
+            return
+        m = self.nodes[w]
+        own = [b for b in m.branches if b.end is None and math.dist(b.start, c) < near]
+        came = [b for b in m.branches if b.end == 'cusp' and b.end_xy is not None and
+                b.end_heading is not None and math.dist(b.end_xy, xy) < near]
+        known = [math.atan2(b.heading[1], b.heading[0]) for b in own if b.heading is not None]
+        known += [math.atan2(-b.end_heading[1], -b.end_heading[0]) for b in came]
+        if not known:
+            return
+        self._cusp_meets.add(key)
+        for k in known:                  # the edges known at the cusp: the nearest gaps
+            if gaps:
+                gaps.remove(min(gaps, key=lambda g: abs(math.remainder(g - k, 2 * math.pi))))
+        if not gaps:
+            return
+        idx = self._record(t, 'meet', xy, 'three closest obstacles equidistant at the cusp '
+                           '(D = delta): GVD edges at ' +
+                           ', '.join(f'{math.degrees(g) % 360:.0f}' for g in gaps) + ' deg')
+        m.meets.append((float(xy[0]), float(xy[1]), idx))
+        self._cusp_meets_ev.add(idx)
+        for g in gaps:
+            m.branches.append(Branch(tuple(c), (math.cos(g), math.sin(g)), idx))
+        m.covered = False
+
+    def _meet_gaps(self):
+        """Bisectors of the gaps between the sweep's three closest obstacles, when they are
+        equidistant within the event tolerance, except the gap wider than half a turn (none
+        such: None, as when they are not equidistant)."""
+        mins = self.mins[:3]
+        if len(mins) < 3 or mins[2][0] - mins[0][0] > self.cfg.event_tolerance:
+            return None
+        b = sorted(a % (2 * math.pi) for _, a in mins)
+        spans = [(b[i], (b[(i + 1) % 3] - b[i]) % (2 * math.pi)) for i in range(3)]
+        if not any(w > math.pi for _, w in spans):
+            return None
+        return [a + w / 2 for a, w in spans if w <= math.pi]
+
     def _detour(self, n, new):
         """Switch ``cusp_detour`` (ours, not the paper's): the boundary circuit of vast
         node ``n`` has sensed the cusp of narrow node ``new``; the circuit is suspended where

@@ -42,6 +42,7 @@ class EventSensing:
                 math.atan2(-head[1], -head[0])
             self._on_event(t, 'cusp', xy, 'D = delta where two closest obstacles meet')
             self._cusp_dir = None
+            self._cusp_meet(t, xy)
 
     def _sense_meet(self, t):
         """Meet point (Section III): three closest obstacles equidistant, two sweeps agreeing."""

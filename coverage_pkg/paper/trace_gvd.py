@@ -116,9 +116,31 @@ class TraceGVD:
                 b.end, b.end_xy = 'traced', tuple(b.start)
                 self._record(self.t_sweep or 0.0, 'branch_end', b.start,
                              'GVD branch ends: its edge is traced already')
+            if b.end is None and self._other_cusps_edge(n, b):
+                b.end, b.end_xy = 'other_cusp', tuple(b.start)
+                self._record(self.t_sweep or 0.0, 'branch_end', b.start,
+                             "GVD branch ends: its edge is another cusp's")
             if b.end is None:
                 out.append(b)
         return out
+
+    def _other_cusps_edge(self, n, b):
+        """Branch ``b`` of narrow node ``n``, added where a cusp read as a meet point
+        (``CreateNode._cusp_meet``), leaves along the GVD edge of another narrow node's cusp:
+        one within the merge distance of its start whose bearing into its narrow cell lies
+        within 30 degrees of the branch's heading (the equal-edge test of
+        ``EventSensing._same_edge``). The cusps of a small vast cell lie within a step of one
+        another, each on its own edge: that edge is the other node's to trace."""
+        if b.opened_by not in self._cusp_meets_ev or b.heading is None:
+            return False
+        a = math.atan2(b.heading[1], b.heading[0])
+        for _, w, c in self.edges:
+            d = self._cusp_dirs.get((round(c[0], 3), round(c[1], 3)))
+            if self.same_node(w) != self.same_node(n.id) and d is not None and \
+                    math.dist(c, b.start) < self.cfg.same_event and \
+                    abs(math.remainder(d - a, 2 * math.pi)) < math.radians(30):
+                return True
+        return False
 
     def _edge_traced(self, start, heading):
         """0.8, 1.6 and 2.4 m out along ``heading`` lie on a traced GVD edge; an edge that
