@@ -70,6 +70,8 @@ MODES = (
      "circuit (the default reads the GVD edges leaving it like a meet point's, ours)"),
     ('circuits_round', {'circuit_join': False}, 'every boundary circuit driven round to its '
      'start, over boundary other circuits followed (the default ends it there, ours)'),
+    ('cusps_not_meets', {'cusp_meet': False}, 'a cusp whose three closest obstacles are '
+     'equidistant gives only its one branch (the default also reads it as a meet point, ours)'),
     ('circuit_sweeps', {'circuit_sweeps': True}, 'ours: no laps in a vast cell every point of '
      'which lies within delta - 0.2 m of its closed boundary circuit'),
     ('cusp_detour', {'cusp_detour': True}, 'ours: a narrow node whose cusp the boundary circuit '
@@ -391,7 +393,7 @@ def write_report(out_dir: Path, quick: bool = False) -> list[Path]:
                      'path / bound'], where)
     lines += ['', '## Modes of the paper planner', '',
               "The paper planner above runs Algorithm 1 in Fig. 13's order (the default: "
-              '`handover`, `meet_scan`, `sliver_openings` and `circuit_join` on, '
+              '`handover`, `meet_scan`, `sliver_openings`, `circuit_join` and `cusp_meet` on, '
               '`circuit_sweeps` and `cusp_detour` off). Each row below changes one switch, on '
               'the same generated worlds (`python -m coverage_pkg.paper_measure --seeds A-B '
               '--set NAME=VALUE`).', '']
