@@ -104,6 +104,10 @@ class PaperConfig:
     meet_scan: bool = True          # ours: on a meet point the robot halts and turns its
     #                                 ring through one cone spacing before it reads the
     #                                 branches (False: from the one sweep that sensed it)
+    end_scan: bool = False          # ours: where a GVD edge ends at an obstacle the robot
+    #                                 halts and turns its ring through one cone spacing
+    #                                 before it reads the gaps beside the end (a door by a
+    #                                 corner) (False: from the one sweep that found the end)
     sliver_openings: bool = True    # ours: a vast cell that is a sliver within delta / 2
     #                                 of its middle is read like a meet point once its
     #                                 circuit closes: each opening of the range over bearing

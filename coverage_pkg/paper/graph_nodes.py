@@ -35,6 +35,7 @@ class Branch:
     end: str = None                 # cusp, dead_end, meet, given_up (None: untraced)
     end_xy: tuple = None            # where the trace ended
     end_heading: tuple = None       # the direction it was traced in when it ended
+    gap: bool = False               # opened by a gap beside a dead end (TraceGVD._gap_at_end)
 
 
 @dataclass

@@ -84,6 +84,9 @@ class TraceGVD:
         self.task['far'] = max(self.task.get('far', 0.0), math.dist(origin, self.pose[:2]))
         if self.echo(math.atan2(tang[1], tang[0])) <= self.cfg.radius + 0.35 or \
                 self._ahead_in_view(tang):
+            if self.cfg.end_scan:         # the gaps at the end are read from a scan
+                self.task['scan'] = self._new_scan(end=tuple(tang))
+                return np.zeros(2)
             self._gap_at_end(n, tang)
             return self._end_branch('dead_end')
         if 'cusp' not in self.cfg.without and self.D > self.det + 0.1 and \
@@ -214,7 +217,7 @@ class TraceGVD:
         self._cusp_dir = None
         return self._end_branch('cusp') if self.mode == 'gvd' else None
 
-    def _gap_at_end(self, n, heading):
+    def _gap_at_end(self, n, heading, scan=None):
         """A GVD edge ends at an obstacle ahead; a gap between closest obstacles beyond
         delta off the way back (a door, a corridor opening next to the corner) is another
         GVD edge joining this one at a meet point here, which the three-echo test did not
@@ -222,15 +225,19 @@ class TraceGVD:
         last heading reversed, unless the edge curved near its end (:meth:`_curved_end`);
         then it is the bearing to the path 1.5 m behind: the peak holding it, and only that
         one, where there is one (a gap beside it, a room opening off a corridor's end, is a
-        branch); else the peaks within 60 degrees of it."""
+        branch); else the peaks within 60 degrees of it. The echoes are the one sweep that
+        found the end, or with ``end_scan`` those of a ``scan`` taken there while the ring
+        turned through one cone spacing: a door beside a corner subtends about one cone
+        spacing from the corner's end, and a single sweep can read its jamb and the wall
+        beyond as one slope of the way back's peak."""
         if 'meet' in self.cfg.without:
             return
         back, way = math.atan2(-heading[1], -heading[0]), self._way_back(heading)
-        _, _, _, peaks = gvdmod.range_peaks(self.angles, self.ranges, self.det,
-                                            self.cfg.event_tolerance)
+        ang, rng = (self.angles, self.ranges) if scan is None else self._scan_echoes(scan)
+        _, _, _, peaks = gvdmod.range_peaks(ang, rng, self.det, self.cfg.event_tolerance)
         curved = self._curved_end(back, way, peaks)
-        for b in self._openings(self.angles, self.ranges, [way] if curved else [back],
-                                self.det, held_first=curved):
+        for b in self._openings(ang, rng, [way] if curved else [back], self.det,
+                                held_first=curved):
             if any(math.dist(q.start, self.pose[:2]) < 1.0 and q.heading is not None and
                    abs(math.remainder(math.atan2(q.heading[1], q.heading[0]) - b,
                                       2 * math.pi)) < math.radians(45) for q in n.branches):
@@ -242,7 +249,7 @@ class TraceGVD:
             if idx is None:
                 return
             n.meets.append((float(self.pose[0]), float(self.pose[1]), idx))
-            n.branches.append(Branch(self.pose[:2], (math.cos(b), math.sin(b)), idx))
+            n.branches.append(Branch(self.pose[:2], (math.cos(b), math.sin(b)), idx, gap=True))
 
     def _curved_end(self, back, way, peaks):
         """The traced edge curved into a corner near its end (past a meet point the ring did
@@ -335,6 +342,9 @@ class TraceGVD:
         if not self._scan_turned(scan):
             return np.zeros(2)
         del self.task['scan']
+        if 'end' in scan:                 # a dead end: its gaps (:meth:`_gap_at_end`)
+            self._gap_at_end(n, scan['end'], scan)
+            return self._end_branch('dead_end')
         self._meet_branches(n, scan)
         return None
 
@@ -347,12 +357,26 @@ class TraceGVD:
         the robot came along is read from the bearing to its path 1.5 m behind
         (:meth:`_way_back`), not from its heading: halted up to half a metre past the meet
         point, it can face off the edge it came along, and an opening within 60 degrees of
-        the reversed heading would be taken for the way come."""
+        the reversed heading would be taken for the way come. On a branch opened by a gap
+        beside a dead end (:meth:`_gap_at_end`), the robot left the dead end along the gap's
+        bearing, across the gap, not along a GVD edge, so the path behind bends where it
+        met the edge it then followed: the bearing to it is no edge's. The robot came along
+        one edge there: the way come is the one peak of the range that holds that bearing or
+        lies nearest to it with its middle within 60 degrees, with the peaks one edge with
+        it (:meth:`_openings`, ``held_first``); every other opening is a branch, however near
+        (a corridor's other way at a T reached through a door beside a corner)."""
         head = np.asarray(self.task.get('heading') or self.task['branch'].heading or (1.0, 0.0))
         back = self._way_back(head)
         ang, rng = self._scan_echoes(scan)
+        _, _, _, peaks = gvdmod.range_peaks(ang, rng, self.det, self.cfg.event_tolerance)
+        near = min(peaks, key=lambda q: self._off_span(back, q[0], q[1]), default=None)
+        gap = self.task['branch'].gap and near is not None
+        if gap and (self._holds(back, near[0], near[1]) or abs(math.remainder(
+                (near[0] + near[1]) / 2 - back, 2 * math.pi)) < math.radians(60)):
+            back = near[2]              # the one peak the robot came along
         out = self._openings(ang, rng, [back], self.det,
-                             self._meet_obstacles(ang, rng, scan['xy'], scan.get('rho')))
+                             self._meet_obstacles(ang, rng, scan['xy'], scan.get('rho')),
+                             held_first=gap)
         if not out:
             return
         a = math.atan2(head[1], head[0])
@@ -433,6 +457,15 @@ class TraceGVD:
                 continue
             self._join_opening(same[0], lo, hi)
         return [q[0] for q in kept]
+
+    @classmethod
+    def _off_span(cls, x, lo, hi):
+        """Angle from bearing ``x`` to the span from ``lo`` anticlockwise to ``hi`` (0 when
+        the span holds it)."""
+        if cls._holds(x, lo, hi):
+            return 0.0
+        return min(abs(math.remainder(x - lo, 2 * math.pi)),
+                   abs(math.remainder(x - hi, 2 * math.pi)))
 
     @staticmethod
     def _join_opening(q, lo, hi):
