@@ -362,8 +362,8 @@ class TraceGVD:
         bearing, across the gap, not along a GVD edge, so the path behind bends where it
         met the edge it then followed: the bearing to it is no edge's. The robot came along
         one edge there: the way come is the one peak of the range that holds that bearing or
-        lies nearest to it with its middle within 60 degrees, with the peaks one edge with
-        it (:meth:`_openings`, ``held_first``); every other opening is a branch, however near
+        lies nearest to it, within 60 degrees, with the peaks one edge with it
+        (:meth:`_openings`, ``held_first``); every other opening is a branch, however near
         (a corridor's other way at a T reached through a door beside a corner)."""
         head = np.asarray(self.task.get('heading') or self.task['branch'].heading or (1.0, 0.0))
         back = self._way_back(head)
@@ -371,8 +371,7 @@ class TraceGVD:
         _, _, _, peaks = gvdmod.range_peaks(ang, rng, self.det, self.cfg.event_tolerance)
         near = min(peaks, key=lambda q: self._off_span(back, q[0], q[1]), default=None)
         gap = self.task['branch'].gap and near is not None
-        if gap and (self._holds(back, near[0], near[1]) or abs(math.remainder(
-                (near[0] + near[1]) / 2 - back, 2 * math.pi)) < math.radians(60)):
+        if gap and self._off_span(back, near[0], near[1]) < math.radians(60):
             back = near[2]              # the one peak the robot came along
         out = self._openings(ang, rng, [back], self.det,
                              self._meet_obstacles(ang, rng, scan['xy'], scan.get('rho')),
