@@ -72,6 +72,9 @@ MODES = (
      'start, over boundary other circuits followed (the default ends it there, ours)'),
     ('cusps_not_meets', {'cusp_meet': False}, 'a cusp whose three closest obstacles are '
      'equidistant gives only its one branch (the default also reads it as a meet point, ours)'),
+    ('end_scan', {'end_scan': True}, 'ours: where a GVD edge ends at an obstacle ahead the '
+     'robot halts and turns its ring through one cone spacing before it reads the gaps there '
+     '(the default reads them from the one sweep that found the end)'),
     ('circuit_sweeps', {'circuit_sweeps': True}, 'ours: no laps in a vast cell every point of '
      'which lies within delta - 0.2 m of its closed boundary circuit'),
     ('cusp_detour', {'cusp_detour': True}, 'ours: a narrow node whose cusp the boundary circuit '
@@ -394,9 +397,9 @@ def write_report(out_dir: Path, quick: bool = False) -> list[Path]:
     lines += ['', '## Modes of the paper planner', '',
               "The paper planner above runs Algorithm 1 in Fig. 13's order (the default: "
               '`handover`, `meet_scan`, `sliver_openings`, `circuit_join` and `cusp_meet` on, '
-              '`circuit_sweeps` and `cusp_detour` off). Each row below changes one switch, on '
-              'the same generated worlds (`python -m coverage_pkg.paper_measure --seeds A-B '
-              '--set NAME=VALUE`).', '']
+              '`end_scan`, `circuit_sweeps` and `cusp_detour` off). Each row below changes one '
+              'switch, on the same generated worlds (`python -m coverage_pkg.paper_measure '
+              '--seeds A-B --set NAME=VALUE`).', '']
     base = {g: [r for r in rows if r['planner'] == 'paper' and r['set'] == g] for g in sets}
     lines += _table(['set', 'mode', 'what it changes', 'mean covered CVS', 'min covered',
                      'mean path / bound', 'mean primitive share', 'update p99 ms (max)'],

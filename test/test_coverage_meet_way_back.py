@@ -7,6 +7,10 @@ point left of the island (bottom wall, top wall and island about delta away) is 
 the robot halts about 0.4 m past it facing north-east, off the edge it came along (from the
 south-east, under the island). The hall's left half opens west of the meet point, 40-50
 degrees from the reversed heading.
+
+The runs switch ``cusp_meet`` off: with it on, the left half is entered the same way but
+its sliver's tip is passed without a cusp, and the top-left corner is left unseen (98.66 %
+of CVS, as in gen_halls_1012 itself; docs/coverage.md lists it).
 """
 import math
 
@@ -36,12 +40,13 @@ def test_the_opening_beside_the_reversed_heading_is_a_branch(monkeypatch):
     the heading reversed, the left half's opening lies within 60 degrees of it and is taken
     for the way come: the robot never goes left of x 5 and a quarter of the hall stays
     uncovered."""
-    r = run_kinematic(world_from_dict(HALL), PaperConfig(), max_time=3000)
+    cfg = PaperConfig(cusp_meet=False)
+    r = run_kinematic(world_from_dict(HALL), cfg, max_time=3000)
     assert r['state'] == 'done' and r['covered_fraction'] >= 0.99
     assert _left_reached(r) < 3.0
 
     monkeypatch.setattr(PaperPlanner, '_way_back',
                         lambda self, h, back=1.5: math.atan2(-h[1], -h[0]))
-    off = run_kinematic(world_from_dict(HALL), PaperConfig(), max_time=3000)
+    off = run_kinematic(world_from_dict(HALL), cfg, max_time=3000)
     assert off['state'] == 'done' and off['covered_fraction'] < 0.9
     assert _left_reached(off) > 5.0
