@@ -60,6 +60,16 @@ class TracedPaths:
                 return best[1]
         return None
 
+    def back_index(self, length: float) -> int | None:
+        """Index of the latest sample at least ``length`` m back along the path from its
+        last one (None when the path is shorter)."""
+        run = 0.0
+        for j in range(len(self.xy) - 1, 0, -1):
+            run += math.dist(self.xy[j], self.xy[j - 1])
+            if run >= length:
+                return j - 1
+        return None
+
     def passes(self, xy: Sequence[float], within: float, before: int | None = None) -> bool:
         """A sample (of the first ``before``, if given) lies within ``within`` of ``xy``."""
         end = len(self.xy) if before is None else before

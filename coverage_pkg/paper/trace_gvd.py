@@ -23,6 +23,7 @@ class TraceGVD:
     #: is at least this share of its second closest's distance away (fitted: 0.3-0.5 cover
     #: gen_mixed_1181, 0 leaves it at 22.80 %, 0.5 leaves gen_halls_1012 at 98.62 %)
     keep_ratio = 0.4
+    _meet_rho = None    # the distance of the sensed meet point's three closest obstacles
 
     def _gvd_step(self, n):
         """TraceGVD: follow the GVD edge of the two closest echoes; branches end at a cusp
@@ -234,10 +235,10 @@ class TraceGVD:
             return
         back, way = math.atan2(-heading[1], -heading[0]), self._way_back(heading)
         ang, rng = (self.angles, self.ranges) if scan is None else self._scan_echoes(scan)
-        _, _, _, peaks = gvdmod.range_peaks(ang, rng, self.det, self.cfg.event_tolerance)
-        curved = self._curved_end(back, way, peaks)
+        found = gvdmod.range_peaks(ang, rng, self.det, self.cfg.event_tolerance)
+        curved = self._curved_end(back, found[3])
         for b in self._openings(ang, rng, [way] if curved else [back], self.det,
-                                held_first=curved):
+                                held_first=curved, found=found):
             if any(math.dist(q.start, self.pose[:2]) < 1.0 and q.heading is not None and
                    abs(math.remainder(math.atan2(q.heading[1], q.heading[0]) - b,
                                       2 * math.pi)) < math.radians(45) for q in n.branches):
@@ -251,34 +252,32 @@ class TraceGVD:
             n.meets.append((float(self.pose[0]), float(self.pose[1]), idx))
             n.branches.append(Branch(self.pose[:2], (math.cos(b), math.sin(b)), idx, gap=True))
 
-    def _curved_end(self, back, way, peaks):
+    def _curved_end(self, back, peaks):
         """The traced edge curved into a corner near its end (past a meet point the ring did
         not sense): no peak of the range (``peaks``) holds the reversed heading ``back``.
         The edge came straight along its last heading where a peak holds it; where none
         does, the reversed heading points along the curve's chord, past the unsensed meet
         point, into the other edge leaving it (the room a door opens into), and the way
-        back is the bearing ``way`` to the path behind, whether or not a peak holds it."""
+        back is the bearing to the path behind (:meth:`_way_back`), whether or not a peak
+        holds it."""
         return not any(self._holds(back, lo, hi) for lo, hi, _ in peaks)
 
     def _way_back(self, heading, back=1.5):
         """Bearing from here to the robot's path ``back`` m behind (-``heading`` when the
         path is shorter): the way the GVD edge came, also where it curved in its last metre
         (into a corner's edge past a meet point the ring did not sense)."""
-        xy, run = self.paths.xy, 0.0
-        for j in range(len(xy) - 1, 0, -1):
-            run += math.dist(xy[j], xy[j - 1])
-            if run >= back:
-                return math.atan2(xy[j - 1][1] - self.pose[1], xy[j - 1][0] - self.pose[0])
-        return math.atan2(-heading[1], -heading[0])
+        j = self.paths.back_index(back)
+        if j is None:
+            return math.atan2(-heading[1], -heading[0])
+        q = self.paths.xy[j]
+        return math.atan2(q[1] - self.pose[1], q[0] - self.pose[0])
 
     def _been_along(self, bearing, recent=1.5):
         """The robot's path passes 0.7 m or 1.4 m out along ``bearing``; its last
         ``recent`` m, the way it came (excluded as such), do not count: where the edge curved
         near its end they pass beside a gap that opens off the way back."""
-        xy, run, last = self.paths.xy, 0.0, len(self.paths.xy)
-        while last > 1 and run < recent:
-            run += math.dist(xy[last - 1], xy[last - 2])
-            last -= 1
+        j = self.paths.back_index(recent)
+        last = min(1, len(self.paths.xy)) if j is None else j + 1
         for s in (0.7, 1.4):
             q = (self.pose[0] + s * math.cos(bearing), self.pose[1] + s * math.sin(bearing))
             if self.paths.passes(q, 0.5, before=last):
@@ -303,8 +302,7 @@ class TraceGVD:
         if n is None or n.kind != 'narrow' or self.task.get('branch') is None:
             return
         n.meets.append((float(xy[0]), float(xy[1]), idx))
-        rho = getattr(self, '_meet_rho', None)
-        scan = self._new_scan(meet=idx, xy=tuple(xy), rho=rho)
+        scan = self._new_scan(meet=idx, xy=tuple(xy), rho=self._meet_rho)
         if self.cfg.meet_scan:
             self.task['scan'] = scan
         else:
@@ -368,14 +366,14 @@ class TraceGVD:
         head = np.asarray(self.task.get('heading') or self.task['branch'].heading or (1.0, 0.0))
         back = self._way_back(head)
         ang, rng = self._scan_echoes(scan)
-        _, _, _, peaks = gvdmod.range_peaks(ang, rng, self.det, self.cfg.event_tolerance)
-        near = min(peaks, key=lambda q: self._off_span(back, q[0], q[1]), default=None)
+        found = gvdmod.range_peaks(ang, rng, self.det, self.cfg.event_tolerance)
+        near = min(found[3], key=lambda q: self._off_span(back, q[0], q[1]), default=None)
         gap = self.task['branch'].gap and near is not None
         if gap and self._off_span(back, near[0], near[1]) < math.radians(60):
             back = near[2]              # the one peak the robot came along
         out = self._openings(ang, rng, [back], self.det,
                              self._meet_obstacles(ang, rng, scan['xy'], scan.get('rho')),
-                             held_first=gap)
+                             held_first=gap, found=found)
         if not out:
             return
         a = math.atan2(head[1], head[0])
@@ -408,7 +406,8 @@ class TraceGVD:
         ey = self.pose[1] + np.where(hit, r, 0.0) * np.sin(ang) - xy[1]
         return hit & (np.hypot(ex, ey) <= rho + self.cfg.event_tolerance)
 
-    def _openings(self, angles, ranges, exclude, beyond, close=None, held_first=False):
+    def _openings(self, angles, ranges, exclude, beyond, close=None, held_first=False,
+                  found=None):
         """Bearings of the GVD edges leaving the place a scan was taken from: the peaks of the
         range over bearing (a gap between two closest obstacles) reaching beyond ``beyond``
         and standing out by at least the event tolerance from the dips on either side (echo
@@ -425,9 +424,10 @@ class TraceGVD:
         splits the door's one peak in two, and the middle of either part points at a jamb,
         the middle of the whole at the bisector of the jambs.
         With ``held_first``, where some peak's upper half holds a bearing of ``exclude``, only
-        those peaks, and the peaks one edge with them by the first test, are the way come."""
-        order, ang, r, peaks = gvdmod.range_peaks(angles, ranges, beyond,
-                                                  self.cfg.event_tolerance)
+        those peaks, and the peaks one edge with them by the first test, are the way come.
+        ``found``: :func:`coverage_pkg.gvd.range_peaks` of these echoes, if the caller has it."""
+        order, ang, r, peaks = found or gvdmod.range_peaks(angles, ranges, beyond,
+                                                           self.cfg.event_tolerance)
         sep = r <= beyond if close is None else (r <= beyond) | np.asarray(close)[order]
 
         inside = self._holds
