@@ -14,6 +14,8 @@ curve's chord), nor the bearing to the path 1.5 m behind (between the door's and
 peaks). The room's peak lies within 60 degrees of the reversed heading, more than 60 degrees
 from the path behind.
 """
+import math
+
 import numpy as np
 import pytest
 
@@ -34,8 +36,9 @@ def _lowest(r):
     return float(np.asarray(r['path'])[:, 1].min())
 
 
-def _old_curved_end(self, back, way, peaks):
+def _old_curved_end(self, back, peaks):
     """The rule replaced: curved only where some peak holds the bearing to the path behind."""
+    way = self._way_back((-math.cos(back), -math.sin(back)))
     return not any(self._holds(back, lo, hi) for lo, hi, _ in peaks) and \
         any(self._holds(way, lo, hi) for lo, hi, _ in peaks)
 

@@ -84,11 +84,12 @@ def test_a_meet_point_reached_off_a_curved_path_keeps_the_corridors_other_way(mo
     first = PaperPlanner._openings
 
     def within_60_of_the_way_back(self, angles, ranges, exclude, beyond, close=None,
-                                  held_first=False):
+                                  held_first=False, found=None):
         if close is None:                 # not a meet point's scan
-            return first(self, angles, ranges, exclude, beyond, close, held_first)
+            return first(self, angles, ranges, exclude, beyond, close, held_first, found)
         head = np.asarray(self.task.get('heading') or self.task['branch'].heading)
-        return first(self, angles, ranges, [self._way_back(head)], beyond, close, False)
+        return first(self, angles, ranges, [self._way_back(head)], beyond, close, False,
+                     found)
 
     monkeypatch.setattr(PaperPlanner, '_openings', within_60_of_the_way_back)
     off = run_kinematic(world_from_dict(ROOM_OVER_CORRIDOR), cfg, max_time=3000)
