@@ -14,10 +14,21 @@ one cone spacing, the door stands out as a peak of its own, and its edge is a br
 
 The second world (gen_mixed_1118's shape) pins the way come at a meet point reached on such a
 gap's branch (TraceGVD._meet_branches).
+
+The third (gen_halls_1170's shape: a hall 3.5 m high and 11 m long with an arm 3.4 m wide
+rising from its west end) pins the way come at a dead end read from the scan: the one peak
+holding the reversed heading (TraceGVD._gap_at_end). The hall's GVD edge ends in the
+south-west corner, where the arm's opening is a peak of its own beside the way back's,
+separated from it by the arm's convex corner 3.1 m away. Excluding the peaks within 60
+degrees of the reversed heading, as from one sweep, drops the arm: it stays unentered
+(gen_halls_1170 with ``end_scan``: 65.57 %).
 """
+import math
+
 import numpy as np
 import pytest
 
+from coverage_pkg import gvd as gvdmod
 from coverage_pkg.algorithm1 import PaperConfig, PaperPlanner
 from coverage_pkg.kinematic import run_kinematic
 from coverage_pkg.world import world_from_dict
@@ -95,3 +106,37 @@ def test_a_meet_point_reached_off_a_curved_path_keeps_the_corridors_other_way(mo
     off = run_kinematic(world_from_dict(ROOM_OVER_CORRIDOR), cfg, max_time=3000)
     assert off['state'] == 'done' and off['covered_fraction'] < 0.8
     assert float(np.asarray(off['path'])[:, 0].min()) > 9.0
+
+
+L_HALL = {
+    'name': 'l_hall', 'start': [4.824, 2.091], 'obstacles': [],
+    'boundary': [[10.965, 3.516], [10.965, 0.0], [0.0, 0.0], [0.0, 9.837], [3.376, 9.837],
+                 [3.376, 3.516]]}
+
+
+@pytest.mark.slow                         # two closed-loop runs, about 3 s
+def test_the_arm_beside_a_corners_way_back_is_a_gap_of_the_dead_end_scan(monkeypatch):
+    """With ``end_scan`` the corner's dead end takes only the peak holding the reversed
+    heading for the way come: the arm is a gap, a branch, and the arm is covered. Taking
+    every peak within 60 degrees of it for the way come where one holds it (the one-sweep
+    rule), the arm is dropped and the robot never leaves the hall."""
+    cfg = PaperConfig(end_scan=True)
+    r = run_kinematic(world_from_dict(L_HALL), cfg, max_time=3000)
+    assert r['state'] == 'done' and r['covered_fraction'] >= 0.99
+    assert float(np.asarray(r['path'])[:, 1].max()) > 7.0
+
+    first = PaperPlanner._openings
+
+    def one_sweep_rule(self, angles, ranges, exclude, beyond, close=None, held_first=False,
+                       found=None):
+        if close is None and held_first:  # a dead end's gaps: held first only if curved
+            head = self.task['heading']
+            peaks = (found or gvdmod.range_peaks(angles, ranges, beyond,
+                                                 self.cfg.event_tolerance))[3]
+            held_first = self._curved_end(math.atan2(-head[1], -head[0]), peaks)
+        return first(self, angles, ranges, exclude, beyond, close, held_first, found)
+
+    monkeypatch.setattr(PaperPlanner, '_openings', one_sweep_rule)
+    off = run_kinematic(world_from_dict(L_HALL), cfg, max_time=3000)
+    assert off['state'] == 'done' and off['covered_fraction'] < 0.7
+    assert float(np.asarray(off['path'])[:, 1].max()) < 3.516

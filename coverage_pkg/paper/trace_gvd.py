@@ -230,26 +230,35 @@ class TraceGVD:
         found the end, or with ``end_scan`` those of a ``scan`` taken there while the ring
         turned through one cone spacing: a door beside a corner subtends about one cone
         spacing from the corner's end, and a single sweep can read its jamb and the wall
-        beyond as one slope of the way back's peak."""
+        beyond as one slope of the way back's peak. Read from a scan, the way come is the one
+        peak holding the reversed heading (as at a meet point, :meth:`_meet_branches`): a
+        neighbouring peak beyond delta is another opening (a hall's arm rising beside the
+        corner the edge ends in), which one sweep's coarse peaks cannot tell apart. All the
+        gaps found are branches of one meet point here; the branch just traced is no branch
+        known at it (its edge lies behind)."""
         if 'meet' in self.cfg.without:
             return
         back, way = math.atan2(-heading[1], -heading[0]), self._way_back(heading)
         ang, rng = (self.angles, self.ranges) if scan is None else self._scan_echoes(scan)
         found = gvdmod.range_peaks(ang, rng, self.det, self.cfg.event_tolerance)
         curved = self._curved_end(back, found[3])
-        for b in self._openings(ang, rng, [way] if curved else [back], self.det,
-                                held_first=curved, found=found):
-            if any(math.dist(q.start, self.pose[:2]) < 1.0 and q.heading is not None and
-                   abs(math.remainder(math.atan2(q.heading[1], q.heading[0]) - b,
-                                      2 * math.pi)) < math.radians(45) for q in n.branches):
-                continue
-            if self._been_along(b):
-                continue
-            idx = self._on_event(self.t_sweep, 'meet', self.pose[:2], 'a gap beyond delta '
-                                 f'at {math.degrees(b):.0f} deg where the GVD edge ends')
-            if idx is None:
-                return
-            n.meets.append((float(self.pose[0]), float(self.pose[1]), idx))
+        this = self.task.get('branch')
+        gaps = [b for b in self._openings(ang, rng, [way] if curved else [back], self.det,
+                                          held_first=curved or scan is not None, found=found)
+                if not self._been_along(b) and not any(
+                    q is not this and math.dist(q.start, self.pose[:2]) < 1.0 and
+                    q.heading is not None and
+                    abs(math.remainder(math.atan2(q.heading[1], q.heading[0]) - b,
+                                       2 * math.pi)) < math.radians(45) for q in n.branches)]
+        if not gaps:
+            return
+        idx = self._on_event(self.t_sweep, 'meet', self.pose[:2], 'a gap beyond delta at ' +
+                             ', '.join(f'{math.degrees(b):.0f}' for b in gaps) +
+                             ' deg where the GVD edge ends')
+        if idx is None:
+            return
+        n.meets.append((float(self.pose[0]), float(self.pose[1]), idx))
+        for b in gaps:                  # one meet point, every gap at it a branch
             n.branches.append(Branch(self.pose[:2], (math.cos(b), math.sin(b)), idx, gap=True))
 
     def _curved_end(self, back, peaks):
