@@ -37,9 +37,9 @@ class EventSensing:
             xy = gvdmod.cusp_from_ring(self.pose[:2], self.ranges, self.angles, self.det)
         if xy is not None:
             head = self.task.get('heading') if self.mode == 'gvd' else None
-            # traced along its GVD edge: back along the trace is into the narrow cell
+            # traced along its GVD edge: back along the path is into the narrow cell
             self._cusp_dir = self._gvd_direction() if head is None else \
-                math.atan2(-head[1], -head[0])
+                self._way_in(head, xy)
             self._on_event(t, 'cusp', xy, 'D = delta where two closest obstacles meet')
             self._cusp_dir = None
             self._cusp_meet(t, xy)

@@ -212,7 +212,7 @@ class TraceGVD:
     def _cusp_ahead(self, heading):
         """D has risen above delta on the GVD edge (Fig. 11): the robot has just passed its
         cusp point. Unless the ring's cusp test placed it already, it is sensed here."""
-        self._cusp_dir = math.atan2(-heading[1], -heading[0])
+        self._cusp_dir = self._way_in(heading, self.pose[:2])
         self._on_event(self.t_sweep, 'cusp', self.pose[:2], 'D rose above delta on the GVD '
                        'edge (Fig. 11)')
         self._cusp_dir = None
@@ -275,11 +275,27 @@ class TraceGVD:
         """Bearing from here to the robot's path ``back`` m behind (-``heading`` when the
         path is shorter): the way the GVD edge came, also where it curved in its last metre
         (into a corner's edge past a meet point the ring did not sense)."""
+        return self._to_path_behind(self.pose[:2], heading, back)
+
+    def _to_path_behind(self, xy, heading, back):
+        """Bearing from ``xy`` to the robot's path ``back`` m behind its last sample
+        (-``heading`` when the path is shorter)."""
         j = self.paths.back_index(back)
         if j is None:
             return math.atan2(-heading[1], -heading[0])
         q = self.paths.xy[j]
-        return math.atan2(q[1] - self.pose[1], q[0] - self.pose[0])
+        return math.atan2(q[1] - xy[1], q[0] - xy[0])
+
+    def _way_in(self, heading, xy):
+        """Bearing from a cusp ``xy`` sensed while tracing into its narrow cell: to the
+        robot's path 1.5 m behind (the GVD edge the robot came along), not its heading
+        reversed. In a room about 2 delta across the edges from its corners meet in its
+        middle, where D comes within a few centimetres of delta; there the GVD law's two
+        closest obstacles switch to another corner's within a step, its heading turns onto
+        that corner's edge as D crosses delta, and the reversed heading would claim that
+        untraced edge for this cusp (a cusp sensed on it later is then known, a branch along
+        it another cusp's edge: gen_maze_1229, gen_maze_1168)."""
+        return self._to_path_behind(xy, heading, 1.5)
 
     def _been_along(self, bearing, recent=1.5):
         """The robot's path passes 0.7 m or 1.4 m out along ``bearing``; its last
