@@ -36,6 +36,8 @@ class Branch:
     end_xy: tuple = None            # where the trace ended
     end_heading: tuple = None       # the direction it was traced in when it ended
     gap: bool = False               # opened by a gap beside a dead end (TraceGVD._gap_at_end)
+    scan: bool = False              # its edges are read by a meet scan at its start (a
+    #                                 meet point passed just beyond delta)
 
 
 @dataclass

@@ -45,8 +45,16 @@ class EventSensing:
             self._cusp_meet(t, xy)
 
     def _sense_meet(self, t):
-        """Meet point (Section III): three closest obstacles equidistant, two sweeps agreeing."""
+        """Meet point (Section III): three closest obstacles equidistant, two sweeps agreeing.
+        One whose obstacles lie just beyond delta is passed and kept (:meth:`_passed_meet`)."""
         m = gvdmod.meet_from_ring(self.pose[:2], self.ranges, self.angles)
+        if m is not None and self.det < m[2] <= self.det + self.cusp_margin:
+            self._meet_cand = None
+            prev, self._passed_cand = self._passed_cand, m
+            if prev is not None and math.dist(prev[:2], m[:2]) <= 0.15:
+                self._passed_meet(((m[0] + prev[0]) / 2, (m[1] + prev[1]) / 2))
+            return
+        self._passed_cand = None
         if m is None or m[2] > self.det:
             self._meet_cand = None
             return
@@ -56,6 +64,19 @@ class EventSensing:
             self._on_event(t, 'meet', ((m[0] + prev[0]) / 2, (m[1] + prev[1]) / 2),
                            f'three closest obstacles at {m[2]:.2f} m')
             self._meet_rho = None
+
+    def _passed_meet(self, xy):
+        """Three closest obstacles equidistant just beyond delta (within the margin by which
+        D must exceed delta on a traced GVD edge before the trace senses Fig. 11's cusp,
+        ``cusp_margin``): the trace passes this point without a halt, since a vast cell may
+        open beyond it (D rising further: a cusp follows). The point is kept for
+        :meth:`TraceGVD._passed_meet_branches` should the edge end in a dead end instead
+        (the last such point of the edge; none at a known meet point)."""
+        if self.task.get('branch') is None or self._known('meet', xy):
+            return
+        pm = self.task.get('passed_meet')
+        if pm is None or math.dist(pm, xy) >= self.cfg.same_event:
+            self.task['passed_meet'] = tuple(xy)
 
     def _on_event(self, t, kind, xy, detail):
         """A sensed (or injected) event: dropped if switched off or filtered, merged with a

@@ -23,6 +23,9 @@ class TraceGVD:
     #: is at least this share of its second closest's distance away (fitted: 0.3-0.5 cover
     #: gen_mixed_1181, 0 leaves it at 22.80 %, 0.5 leaves gen_halls_1012 at 98.62 %)
     keep_ratio = 0.4
+    #: on a traced GVD edge D must exceed delta by this before the trace senses Fig. 11's
+    #: cusp there (echo noise between walls about 2 delta apart)
+    cusp_margin = 0.1
     _meet_rho = None    # the distance of the sensed meet point's three closest obstacles
 
     def _gvd_step(self, n):
@@ -43,6 +46,14 @@ class TraceGVD:
         self.mode = 'gvd'
         if 'scan' in self.task:
             return self._scan_step(n)
+        if br.scan and 'scanned' not in self.task:     # a passed meet point's edges
+            self.task['scanned'] = True
+            scan = self._new_scan(meet=br.opened_by, xy=tuple(br.start))
+            if not self.cfg.meet_scan:
+                self._meet_branches(n, scan)
+                return None
+            self.task['scan'] = scan
+            return np.zeros(2)
         head = self.task.get('heading') or br.heading
         leave = self.task.setdefault('leave', self.pose[:2])
         off = math.dist(leave, self.pose[:2])
@@ -90,7 +101,7 @@ class TraceGVD:
                 return np.zeros(2)
             self._gap_at_end(n, tang)
             return self._end_branch('dead_end')
-        if 'cusp' not in self.cfg.without and self.D > self.det + 0.1 and \
+        if 'cusp' not in self.cfg.without and self.D > self.det + self.cusp_margin and \
                 self.task['far'] > 1.0:
             return self._cusp_ahead(tang)         # Fig. 11: D rose above delta
         if self.task['far'] > 3.0 and math.dist(origin, self.pose[:2]) < 0.5:
@@ -238,6 +249,7 @@ class TraceGVD:
         known at it (its edge lies behind)."""
         if 'meet' in self.cfg.without:
             return
+        self._passed_meet_branches(n)
         back, way = math.atan2(-heading[1], -heading[0]), self._way_back(heading)
         ang, rng = (self.angles, self.ranges) if scan is None else self._scan_echoes(scan)
         found = gvdmod.range_peaks(ang, rng, self.det, self.cfg.event_tolerance)
@@ -260,6 +272,25 @@ class TraceGVD:
         n.meets.append((float(self.pose[0]), float(self.pose[1]), idx))
         for b in gaps:                  # one meet point, every gap at it a branch
             n.branches.append(Branch(self.pose[:2], (math.cos(b), math.sin(b)), idx, gap=True))
+
+    def _passed_meet_branches(self, n):
+        """The GVD edge ends in a dead end after passing a point where its three closest
+        obstacles were equidistant just beyond delta (``EventSensing._passed_meet``): the
+        edge beyond that point stayed narrow (no cusp), so the point is a meet point of this
+        narrow node: the end of a hall about 2 delta high, where the edges into its two
+        corners leave the centre line, or the outer corner of an L between two halls
+        narrower than 2 delta. It is recorded as one (a meet event) with a branch that
+        starts there by a meet scan (:meth:`_scan_step`): its openings other than the way
+        the robot came back from the dead end are its GVD edges. From the dead end the
+        other edges can hold no peak of the range (a hall's other corner, seen along its
+        end wall) or one read as the way back (:meth:`_gap_at_end`)."""
+        xy = self.task.get('passed_meet')
+        if xy is None or self._known('meet', xy):
+            return
+        idx = self._record(self.t_sweep, 'meet', xy, 'three closest obstacles just beyond '
+                           'delta on an edge that ended in a dead end')
+        n.meets.append((float(xy[0]), float(xy[1]), idx))
+        n.branches.append(Branch(tuple(xy), None, idx, scan=True))
 
     def _curved_end(self, back, peaks):
         """The traced edge curved into a corner near its end (past a meet point the ring did
@@ -327,6 +358,7 @@ class TraceGVD:
         if n is None or n.kind != 'narrow' or self.task.get('branch') is None:
             return
         n.meets.append((float(xy[0]), float(xy[1]), idx))
+        self.task.pop('passed_meet', None)    # the edges beyond leave this meet point
         scan = self._new_scan(meet=idx, xy=tuple(xy), rho=self._meet_rho)
         if self.cfg.meet_scan:
             self.task['scan'] = scan
@@ -369,6 +401,8 @@ class TraceGVD:
             self._gap_at_end(n, scan['end'], scan)
             return self._end_branch('dead_end')
         self._meet_branches(n, scan)
+        if self.task['branch'].scan and self.task.get('heading') is None:
+            return self._end_branch('meet')       # no edge leaves it but the way come
         return None
 
     def _meet_branches(self, n, scan):
