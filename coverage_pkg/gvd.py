@@ -151,7 +151,7 @@ def cusp_from_ring(xy: Sequence[float], ranges: ArrayLike, angles: ArrayLike, de
 
 
 def meet_from_ring(xy: Sequence[float], ranges: ArrayLike, angles: ArrayLike,
-                   max_shift: float = 0.5, max_gap: float = math.radians(190.0)
+                   max_shift: float = 0.5, max_gap: float | None = math.radians(190.0)
                    ) -> tuple[float, float, float] | None:
     """The meet point near ``xy`` from one ring sweep: the point equidistant to the three
     closest obstacles, or None.
@@ -163,7 +163,7 @@ def meet_from_ring(xy: Sequence[float], ranges: ArrayLike, angles: ArrayLike,
     junction's meet point 0.2 m off it, where the third obstacle is 0.3 m farther than the
     other two). Returns ``(x, y, rho)``; None when the three bearings do not surround the
     point (a gap between bearings wider than ``max_gap``: a half-plane plus the ring's
-    bearing quantisation), the system is ill-posed, or the shift
+    bearing quantisation; None: no such test), the system is ill-posed, or the shift
     exceeds ``max_shift``."""
     mins = ring_minima(ranges, angles)
     if len(mins) < 3:
@@ -171,7 +171,7 @@ def meet_from_ring(xy: Sequence[float], ranges: ArrayLike, angles: ArrayLike,
     three = mins[:3]
     bearings = np.sort([math.remainder(a, 2 * math.pi) for _, a in three])
     gaps = np.diff(np.r_[bearings, bearings[0] + 2 * math.pi])
-    if gaps.max() > max_gap:
+    if max_gap is not None and gaps.max() > max_gap:
         return None
     a = np.array([[math.cos(b), math.sin(b), 1.0] for _, b in three])
     if np.linalg.cond(a) > 50.0:

@@ -357,7 +357,11 @@ class MorseDecompCoverage:
                       first=len(circ.get('trace', ())))
             self._record(self.t_sweep, 'circuit', self.pose, f'boundary of vast node {n.id}')
         tk['length'] += math.dist(tk['last'], self.pose[:2])
+        if math.dist(tk['last'], self.pose[:2]) > 1e-6:
+            tk['move'] = tuple(np.asarray(self.pose[:2]) - np.asarray(tk['last']))
         tk['last'] = self.pose[:2]
+        if 'away' not in tk and math.dist(tk['origin'], self.pose[:2]) > 0.3:
+            tk['away'] = tuple(np.asarray(self.pose[:2]) - np.asarray(tk['origin']))
         trace = circ.setdefault('trace', [])
         if not trace or math.dist(trace[-1], self.pose[:2]) > 0.3:
             if trace and 'closed_at' not in tk and self._retraced(circ, tk):
@@ -371,7 +375,8 @@ class MorseDecompCoverage:
                     self._joins_known(circ, tk):
                 return self._joined(n, circ, tk)
         back = math.dist(tk['origin'], self.pose[:2])
-        passed = tk['length'] > 3.0 and tk.get('back', math.inf) < 0.8 and back > tk['back']
+        passed = tk['length'] > 3.0 and tk.get('back', math.inf) < 0.8 and \
+            back > tk['back'] and (not self.cfg.circuit_same_way or self._same_way(tk))
         tk['back'] = back                     # closest pass by the start counts as back
         if 'closed_at' not in tk and ((tk['length'] > 3.0 and back < 0.4) or passed):
             tk['closed_at'] = tk['length']    # back at the start
@@ -381,6 +386,17 @@ class MorseDecompCoverage:
         if tk['length'] - tk.get('closed_at', math.inf) >= run_on or tk['length'] > 500.0:
             return self._circuit_done(n, circ, tk)
         return self._follow_velocity(tk.get('side', 1))
+
+    @staticmethod
+    def _same_way(tk):
+        """The circuit moves the way it left its start (within 90 degrees of the bearing
+        from its start to where it first was 0.3 m away): with ``circuit_same_way`` (ours),
+        a closest pass by the start counts as back at the start only so. A vast cell less
+        than 0.8 m across (a room just over 2 delta wide) has its curve D = delta's far side
+        pass the start the other way round, before the circuit has followed the cell's far
+        end and sensed the cusps there."""
+        away, move = tk.get('away'), tk.get('move')
+        return away is None or move is None or float(np.dot(away, move)) > 0.0
 
     def _retraced(self, circ, tk, near=0.3, behind=3.0):
         """The circuit is back on a stretch of its own trace followed the same way (within

@@ -45,17 +45,31 @@ class EventSensing:
             self._cusp_meet(t, xy)
 
     def _sense_meet(self, t):
-        """Meet point (Section III): three closest obstacles equidistant, two sweeps agreeing.
-        One whose obstacles lie just beyond delta is passed and kept (:meth:`_passed_meet`)."""
-        m = gvdmod.meet_from_ring(self.pose[:2], self.ranges, self.angles)
-        if m is not None and self.det < m[2] <= self.det + self.cusp_margin:
+        """Meet point (Section III): three closest obstacles equidistant, two sweeps agreeing,
+        at D up to delta + ``PaperConfig.meet_margin`` (ours; 0.1 m is as far as the trace
+        follows the GVD edge before it takes D to have risen above delta, Fig. 11's cusp in
+        ``TraceGVD._gvd_step``): where a corner's diagonal edge leaves the edge
+        traced along the walls at D = delta within the echoes' noise, the three-echo solve
+        puts D at delta plus a few centimetres either way, and the corner's edge is a branch
+        only if the meet point is taken. With ``meet_surround`` off, the three need not
+        surround the point: a meet point is the centre of a circle touching three obstacles,
+        which lies outside the triangle of the touching points where that triangle is
+        obtuse, and then their bearings lie within a half-plane (a door beside a room's side
+        wall: the door's two jambs and the wall are equidistant from a point inside the
+        room, and the GVD edge between the wall and the far jamb leaves it into the room,
+        away from all three). One whose obstacles lie beyond that, up to delta +
+        ``cusp_margin``, is passed and kept (:meth:`_passed_meet`)."""
+        gap = math.radians(190.0) if self.cfg.meet_surround else None
+        m = gvdmod.meet_from_ring(self.pose[:2], self.ranges, self.angles, max_gap=gap)
+        reach = self.det + self.cfg.meet_margin
+        if m is not None and reach < m[2] <= self.det + self.cusp_margin:
             self._meet_cand = None
             prev, self._passed_cand = self._passed_cand, m
             if prev is not None and math.dist(prev[:2], m[:2]) <= 0.15:
                 self._passed_meet(((m[0] + prev[0]) / 2, (m[1] + prev[1]) / 2))
             return
         self._passed_cand = None
-        if m is None or m[2] > self.det:
+        if m is None or m[2] > reach:
             self._meet_cand = None
             return
         prev, self._meet_cand = self._meet_cand, m

@@ -26,6 +26,10 @@ class TraceGVD:
     #: on a traced GVD edge D must exceed delta by this before the trace senses Fig. 11's
     #: cusp there (echo noise between walls about 2 delta apart)
     cusp_margin = 0.1
+    #: with ``meet_surround`` off, two peaks of a scan, one's upper half holding the other's
+    #: top, leave along the middle of their joint span (:meth:`_openings`; False: along the
+    #: first peak's middle)
+    join_held = True
     _meet_rho = None    # the distance of the sensed meet point's three closest obstacles
 
     def _gvd_step(self, n):
@@ -477,11 +481,12 @@ class TraceGVD:
         other's top (a far wall's corners seen through one door), or when they lie
         within 45 degrees of each other and look through one opening (no bearing between
         them meets an obstacle within ``beyond``, nor one of the echoes ``close`` marks: a
-        closest obstacle of the meet point the scan was taken near). By the first test the
-        first peak is kept. By the second the edge leaves along the middle of the span
-        covering both peaks' upper halves: an obstacle beyond a door, seen through it,
-        splits the door's one peak in two, and the middle of either part points at a jamb,
-        the middle of the whole at the bisector of the jambs.
+        closest obstacle of the meet point the scan was taken near). By either test the edge
+        leaves along the middle of the span covering both peaks' upper halves: an obstacle
+        beyond a door, seen through it, splits the door's one peak in two, and the middle of
+        either part points at a jamb, the middle of the whole at the bisector of the jambs;
+        the range of a wide opening seen past an obstacle's edge also peaks just beyond that
+        edge, a narrow peak at the wide one's side whose middle points at the obstacle.
         With ``held_first``, where some peak's upper half holds a bearing of ``exclude``, only
         those peaks, and the peaks one edge with them by the first test, are the way come.
         ``found``: :func:`coverage_pkg.gvd.range_peaks` of these echoes, if the caller has it."""
@@ -505,7 +510,10 @@ class TraceGVD:
             mid = ((lo + hi) / 2) % (2 * math.pi)
             if came(lo, hi, top, mid):
                 continue
-            if any(inside(top, q[2], q[3]) or inside(q[1], lo, hi) for q in kept):
+            held_top = [q for q in kept if inside(top, q[2], q[3]) or inside(q[1], lo, hi)]
+            if held_top:
+                if self.join_held and not self.cfg.meet_surround:
+                    self._join_opening(held_top[0], lo, hi)
                 continue
             same = [q for q in kept
                     if abs(math.remainder(mid - q[0], 2 * math.pi)) <= math.radians(45) and
