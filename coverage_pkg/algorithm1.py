@@ -119,21 +119,23 @@ class PaperConfig:
     #                                 them but the one facing the vast cell is a branch of
     #                                 its narrow node (a door beside a corner's cusp)
     #                                 (False: the cusp's one branch)
-    meet_margin: float = 0.0        # m, ours: a meet point is taken at D <= delta + this
+    meet_margin: float = 0.1        # m, ours: a meet point is taken at D <= delta + this
     #                                 (0.1: as far as the GVD trace goes before D has risen
     #                                 above delta; a corner's edge leaving a wall's edge at
-    #                                 D = delta within the echoes' noise)
-    circuit_same_way: bool = False  # ours: a boundary circuit's closest pass by its start
+    #                                 D = delta within the echoes' noise) (0: one beyond
+    #                                 delta is passed and kept, a meet point only if the
+    #                                 edge beyond ends in a dead end without a cusp)
+    circuit_same_way: bool = True   # ours: a boundary circuit's closest pass by its start
     #                                 counts as back only going the way it left the start
     #                                 (False: either way; a vast cell under 0.8 m across
     #                                 then ends its circuit on the far side)
-    meet_surround: bool = True      # ours: a meet point is taken only where its three
+    meet_surround: bool = False     # True: a meet point is taken only where its three
     #                                 closest obstacles surround it (no gap over 190 deg
-    #                                 between their bearings) (False: also within a
-    #                                 half-plane, an obtuse triangle's circumcentre, as the
-    #                                 paper's definition allows; and two peaks of a scan, one
+    #                                 between their bearings) (False, as the paper's
+    #                                 definition allows: also within a half-plane, an obtuse
+    #                                 triangle's circumcentre; and two peaks of a scan, one
     #                                 holding the other's top, leave along their joint
-    #                                 span's middle)
+    #                                 span's middle, ours)
 
     def detector_range(self) -> float:
         """Range of the detector used for coverage: delta."""

@@ -18,6 +18,7 @@ import math
 
 import numpy as np
 import pytest
+from paper_rules import LATER_RULES_OFF
 
 from coverage_pkg.algorithm1 import PaperConfig, PaperPlanner
 from coverage_pkg.kinematic import run_kinematic
@@ -50,11 +51,12 @@ def test_the_room_past_an_unsensed_meet_point_is_a_branch_at_the_corner(monkeypa
     room, and the world is covered. With the reversed heading kept when no peak holds the
     path behind either, the room's peak is taken for the way come, no branch is added, and
     the run ends 'done' at the corner with the room unentered."""
-    r = run_kinematic(world_from_dict(CORRIDOR_DOOR_CORNER), PaperConfig(), max_time=3000)
+    cfg = PaperConfig(**LATER_RULES_OFF)
+    r = run_kinematic(world_from_dict(CORRIDOR_DOOR_CORNER), cfg, max_time=3000)
     assert r['state'] == 'done' and r['covered_fraction'] >= 0.99
     assert _lowest(r) < 3.5
 
     monkeypatch.setattr(PaperPlanner, '_curved_end', _old_curved_end)
-    off = run_kinematic(world_from_dict(CORRIDOR_DOOR_CORNER), PaperConfig(), max_time=3000)
+    off = run_kinematic(world_from_dict(CORRIDOR_DOOR_CORNER), cfg, max_time=3000)
     assert off['state'] == 'done' and off['covered_fraction'] < 0.7
     assert _lowest(off) > 5.0

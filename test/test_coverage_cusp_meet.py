@@ -15,6 +15,7 @@ import math
 
 import numpy as np
 import pytest
+from paper_rules import LATER_RULES_OFF
 
 from coverage_pkg.algorithm1 import PaperConfig
 from coverage_pkg.kinematic import run_kinematic
@@ -37,7 +38,7 @@ def test_the_door_beside_a_corners_cusp_is_a_branch_of_its_narrow_node():
     cusp adds a branch northwards, the robot traces it through the door into the corridor
     and the world is covered. Without it, the cusp's one branch ends in the corner, the
     corridor is never entered and most of it stays uncovered."""
-    r = run_kinematic(world_from_dict(CORNER_DOOR), PaperConfig(cusp_meet=True),
+    r = run_kinematic(world_from_dict(CORNER_DOOR), PaperConfig(cusp_meet=True, **LATER_RULES_OFF),
                       max_time=3000)
     assert r['state'] == 'done' and r['covered_fraction'] >= 0.99
     assert _highest(r) > 6.5
@@ -47,8 +48,8 @@ def test_the_door_beside_a_corners_cusp_is_a_branch_of_its_narrow_node():
              if k.kind == 'narrow' and math.dist(k.anchor, (8.15, 4.2)) < 0.5)
     assert any(b.heading[1] > 0.9 for b in n.branches)          # north, through the door
 
-    off = run_kinematic(world_from_dict(CORNER_DOOR), PaperConfig(cusp_meet=False),
-                        max_time=3000)
+    off = run_kinematic(world_from_dict(CORNER_DOOR),
+                        PaperConfig(cusp_meet=False, **LATER_RULES_OFF), max_time=3000)
     assert off['state'] == 'done' and off['covered_fraction'] < 0.9
     assert _highest(off) < 6.0
     assert not any('at the cusp' in e[4] for e in off['planner'].events)

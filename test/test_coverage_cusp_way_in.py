@@ -17,6 +17,7 @@ import math
 
 import numpy as np
 import pytest
+from paper_rules import LATER_RULES_OFF
 
 from coverage_pkg.algorithm1 import PaperConfig, PaperPlanner
 from coverage_pkg.kinematic import run_kinematic
@@ -46,7 +47,7 @@ def test_the_cusp_in_a_rooms_middle_leads_back_along_the_edge_traced(monkeypatch
     reversed, the first cusp's bearing points at the bottom-left corner, whose cusp is then
     taken for the known one: the robot never comes within 2.5 m of that corner and part of
     the room stays unseen."""
-    r = run_kinematic(world_from_dict(ROOM), PaperConfig(), max_time=3000)
+    r = run_kinematic(world_from_dict(ROOM), PaperConfig(**LATER_RULES_OFF), max_time=3000)
     assert r['state'] == 'done' and r['covered_fraction'] >= 0.99
     pl = r['planner']
     vast = next(n for n in pl.nodes if n.kind == 'vast')
@@ -59,6 +60,6 @@ def test_the_cusp_in_a_rooms_middle_leads_back_along_the_edge_traced(monkeypatch
 
     monkeypatch.setattr(PaperPlanner, '_way_in',
                         lambda self, h, xy: math.atan2(-h[1], -h[0]))
-    off = run_kinematic(world_from_dict(ROOM), PaperConfig(), max_time=3000)
+    off = run_kinematic(world_from_dict(ROOM), PaperConfig(**LATER_RULES_OFF), max_time=3000)
     assert off['state'] == 'done' and off['covered_fraction'] < 0.99
     assert _corner_approach(off) > 2.5

@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+from paper_rules import LATER_RULES_OFF
 
 from coverage_pkg.algorithm1 import Branch, PaperConfig, PaperPlanner
 from coverage_pkg.kinematic import run_kinematic
@@ -98,7 +99,8 @@ def test_a_meet_points_closest_obstacle_separates_its_door_from_the_corner(rho):
 
 
 def _run(world, max_time=1500, **config):
-    return run_kinematic(world_from_dict(world), PaperConfig(**config), max_time=max_time)
+    return run_kinematic(world_from_dict(world), PaperConfig(**{**LATER_RULES_OFF, **config}),
+                         max_time=max_time)
 
 
 @pytest.mark.parametrize('separate', [True, False])

@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 import pytest
+from paper_rules import LATER_RULES_OFF
 
 from coverage_pkg.algorithm1 import PaperConfig, PaperPlanner
 from coverage_pkg.kinematic import run_kinematic
@@ -38,7 +39,7 @@ def test_the_room_beside_the_end_of_the_hall_is_a_branch(monkeypatch):
     trace passes just beyond delta (TraceGVD._passed_meet_branches) leads into the room as
     well; it is switched off in both runs, so that the gap at the end is the only way."""
     monkeypatch.setattr(PaperPlanner, '_passed_meet_branches', lambda self, n: None)
-    r = run_kinematic(world_from_dict(L_HALL), PaperConfig(), max_time=3000)
+    r = run_kinematic(world_from_dict(L_HALL), PaperConfig(**LATER_RULES_OFF), max_time=3000)
     assert r['state'] == 'done' and r['covered_fraction'] >= 0.99
     assert _room_reached(r) > 5.5
     pl = r['planner']
@@ -47,6 +48,6 @@ def test_the_room_beside_the_end_of_the_hall_is_a_branch(monkeypatch):
 
     monkeypatch.setattr(PaperPlanner, '_way_back',
                         lambda self, h, back=1.5: math.atan2(-h[1], -h[0]))
-    off = run_kinematic(world_from_dict(L_HALL), PaperConfig(), max_time=3000)
+    off = run_kinematic(world_from_dict(L_HALL), PaperConfig(**LATER_RULES_OFF), max_time=3000)
     assert off['state'] == 'done' and off['covered_fraction'] < 0.9
     assert _room_reached(off) < 3.7

@@ -12,6 +12,7 @@ traces the edge that passes the door.
 """
 import numpy as np
 import pytest
+from paper_rules import LATER_RULES_OFF
 
 from coverage_pkg.algorithm1 import PaperConfig, PaperPlanner
 from coverage_pkg.kinematic import run_kinematic
@@ -35,11 +36,11 @@ def test_a_bearing_onto_an_obstacle_is_left_to_the_gvd_law(monkeypatch):
     """With the bearing kept only between two obstacles, the robot passes the door, traces
     the corridor and covers the world. Kept whatever the closest obstacle (the ratio 0), the
     robot hugs the pillar, never enters the corridor and leaves most of it uncovered."""
-    r = run_kinematic(world_from_dict(ROOM), PaperConfig(), max_time=3000)
+    r = run_kinematic(world_from_dict(ROOM), PaperConfig(**LATER_RULES_OFF), max_time=3000)
     assert r['state'] == 'done' and r['covered_fraction'] >= 0.99
     assert _lowest(r) < 6.5
 
     monkeypatch.setattr(PaperPlanner, 'keep_ratio', 0.0)
-    off = run_kinematic(world_from_dict(ROOM), PaperConfig(), max_time=3000)
+    off = run_kinematic(world_from_dict(ROOM), PaperConfig(**LATER_RULES_OFF), max_time=3000)
     assert off['state'] == 'done' and off['covered_fraction'] < 0.9
     assert _lowest(off) > 7.0

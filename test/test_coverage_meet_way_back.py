@@ -16,6 +16,7 @@ import math
 
 import numpy as np
 import pytest
+from paper_rules import LATER_RULES_OFF
 
 from coverage_pkg.algorithm1 import PaperConfig, PaperPlanner
 from coverage_pkg.kinematic import run_kinematic
@@ -40,7 +41,7 @@ def test_the_opening_beside_the_reversed_heading_is_a_branch(monkeypatch):
     the heading reversed, the left half's opening lies within 60 degrees of it and is taken
     for the way come: the robot never goes left of x 5 and a quarter of the hall stays
     uncovered."""
-    cfg = PaperConfig(cusp_meet=False)
+    cfg = PaperConfig(cusp_meet=False, **LATER_RULES_OFF)
     r = run_kinematic(world_from_dict(HALL), cfg, max_time=3000)
     assert r['state'] == 'done' and r['covered_fraction'] >= 0.99
     assert _left_reached(r) < 3.0
