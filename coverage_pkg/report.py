@@ -9,13 +9,9 @@ the same planner and sonar model as the ROS graph):
   (:mod:`coverage_pkg.worldgen`): covered share of CVS, path / lower bound,
   sim and wall time, planner time per sweep, and for the paper planner the share of path
   driven by its primitives (lap, boundary, GVD) rather than transit;
-* the paper planner's selectable modes (:data:`MODES`: Algorithm 1's pseudocode order,
-  ``handover`` off; meet points read from one sweep, ``meet_scan`` off; slivers left to
-  their circuits, ``sliver_openings`` off; circuits driven round, ``circuit_join`` off;
-  ``circuit_sweeps`` and ``cusp_detour``, ours) on the same
-  generated
-  worlds beside the default
-  (Algorithm 1 in Fig. 13's order);
+* the paper planner's selectable modes (:data:`MODES`: one ``PaperConfig`` switch set
+  against the default each, e.g. Algorithm 1's pseudocode order, ``handover`` off) on the
+  same generated worlds beside the default (Algorithm 1 in Fig. 13's order);
 * the ablations of the paper planner, each event's sensing switched off (``without``) on the
   world made to show it, beside what the paper predicts;
 
