@@ -60,6 +60,7 @@ class TraceGVD:
             return np.zeros(2)
         head = self.task.get('heading') or br.heading
         leave = self.task.setdefault('leave', self.pose[:2])
+        self.task.setdefault('path0', len(self.paths.xy) - 1)
         off = math.dist(leave, self.pose[:2])
         if head is not None and off < 0.6:
             return np.asarray(head) * self.cfg.max_speed   # off the meet point, onto its edge
@@ -306,16 +307,23 @@ class TraceGVD:
         holds it."""
         return not any(self._holds(back, lo, hi) for lo, hi, _ in peaks)
 
-    def _way_back(self, heading, back=1.5):
+    def _way_back(self, heading, back=1.5, since=None):
         """Bearing from here to the robot's path ``back`` m behind (-``heading`` when the
         path is shorter): the way the GVD edge came, also where it curved in its last metre
-        (into a corner's edge past a meet point the ring did not sense)."""
-        return self._to_path_behind(self.pose[:2], heading, back)
+        (into a corner's edge past a meet point the ring did not sense). ``since``: the
+        path's sample where the branch being traced began (:meth:`_to_path_behind`)."""
+        return self._to_path_behind(self.pose[:2], heading, back, since)
 
-    def _to_path_behind(self, xy, heading, back):
+    def _to_path_behind(self, xy, heading, back, since=None):
         """Bearing from ``xy`` to the robot's path ``back`` m behind its last sample
-        (-``heading`` when the path is shorter)."""
+        (-``heading`` when the path is shorter). With ``since`` (the path's sample where
+        the branch being traced began), not farther back than that sample: the path before
+        it is another primitive's (a transit to the branch's start from elsewhere), not the
+        edge come along; the sample itself when at least 0.3 m away, else -``heading``."""
         j = self.paths.back_index(back)
+        if since is not None and (j is None or j < since):
+            j = since if 0 <= since < len(self.paths.xy) and \
+                math.dist(self.paths.xy[since], xy) >= 0.3 else None
         if j is None:
             return math.atan2(-heading[1], -heading[0])
         q = self.paths.xy[j]
@@ -415,10 +423,15 @@ class TraceGVD:
         heading. Two branches equally near it (within half the cones' spacing, the ring's
         bearing resolution) are a symmetric fork: the robot takes the right-hand one, as at
         Fig. 13's Mp1 ('The robot chooses the lower edge', arriving along +x). The edge
-        the robot came along is read from the bearing to its path 1.5 m behind
-        (:meth:`_way_back`), not from its heading: halted up to half a metre past the meet
-        point, it can face off the edge it came along, and an opening within 60 degrees of
-        the reversed heading would be taken for the way come. On a branch opened by a gap
+        the robot came along is read from the bearing to its path 1.5 m behind, not from its
+        heading: halted up to half a metre past the meet point, it can face off the edge it
+        came along, and an opening within 60 degrees of the reversed heading would be taken
+        for the way come. The path read is the branch's own trace: a meet point sensed
+        within 1.5 m of the branch's start has behind it, farther back, the transit that
+        brought the robot to that start from elsewhere, whose bearing is no edge's and can
+        claim an untraced opening for the way come (gen_maze_1179: a room's top-left corner;
+        gen_maze_2013: a stub north of a crossing); the bearing then points to the branch's
+        start (:meth:`_way_back`, ``since``). On a branch opened by a gap
         beside a dead end (:meth:`_gap_at_end`), the robot left the dead end along the gap's
         bearing, across the gap, not along a GVD edge, so the path behind bends where it
         met the edge it then followed: the bearing to it is no edge's. The robot came along
@@ -427,7 +440,7 @@ class TraceGVD:
         (:meth:`_openings`, ``held_first``); every other opening is a branch, however near
         (a corridor's other way at a T reached through a door beside a corner)."""
         head = np.asarray(self.task.get('heading') or self.task['branch'].heading or (1.0, 0.0))
-        back = self._way_back(head)
+        back = self._way_back(head, since=self.task.get('path0'))
         ang, rng = self._scan_echoes(scan)
         found = gvdmod.range_peaks(ang, rng, self.det, self.cfg.event_tolerance)
         near = min(found[3], key=lambda q: self._off_span(back, q[0], q[1]), default=None)
