@@ -3,10 +3,10 @@
 Several rules can each lead the robot into the same region: a door beside a corner is found by
 a dead end's gap, a cusp read as a meet point, or a meet point taken in a half-plane or just
 beyond delta. A causal test shows that its own rule decides, by patching that rule out and
-seeing the region stay unentered; so it runs with the rules added after it switched off, as
-the planner stood when the rule was made, lest another rule enter the region instead.
+seeing the region stay unentered; so it runs with the rules that also lead there switched
+off, lest another rule enter the region instead.
 """
 
 #: meet points only where their three closest obstacles surround them and within delta, and a
-#: boundary circuit back at its start going either way (``PaperConfig``'s defaults before)
+#: boundary circuit back at its start going either way (each switch's other setting)
 LATER_RULES_OFF = {'meet_surround': True, 'meet_margin': 0.0, 'circuit_same_way': False}
