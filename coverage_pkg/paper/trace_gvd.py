@@ -264,9 +264,7 @@ class TraceGVD:
                                           held_first=curved or scan is not None, found=found)
                 if not self._been_along(b) and not any(
                     q is not this and math.dist(q.start, self.pose[:2]) < 1.0 and
-                    q.heading is not None and
-                    abs(math.remainder(math.atan2(q.heading[1], q.heading[0]) - b,
-                                       2 * math.pi)) < math.radians(45) for q in n.branches)]
+                    q.heading is not None and self._known_branch(q, b) for q in n.branches)]
         if not gaps:
             return
         idx = self._on_event(self.t_sweep, 'meet', self.pose[:2], 'a gap beyond delta at ' +
@@ -277,6 +275,18 @@ class TraceGVD:
         n.meets.append((float(self.pose[0]), float(self.pose[1]), idx))
         for b in gaps:                  # one meet point, every gap at it a branch
             n.branches.append(Branch(self.pose[:2], (math.cos(b), math.sin(b)), idx, gap=True))
+
+    def _known_branch(self, q, b):
+        """Gap bearing ``b``, read here, leads along the edge of branch ``q``, which leaves
+        a point up to a metre away: the place delta out along ``b`` lies within 45 degrees of
+        ``q``'s bearing seen from ``q``'s start. The two bearings are read from different
+        places, so they are compared from one: a door beside a corner, seen from the corner's
+        dead end, and the edge that leaves a meet point beside that corner towards the room's
+        inside can point within 45 degrees of each other yet lead a couple of metres apart."""
+        x = self.pose[0] + self.det * math.cos(b) - q.start[0]
+        y = self.pose[1] + self.det * math.sin(b) - q.start[1]
+        return abs(math.remainder(math.atan2(y, x) - math.atan2(q.heading[1], q.heading[0]),
+                                  2 * math.pi)) < math.radians(45)
 
     def _passed_meet_branches(self, n):
         """The GVD edge ends in a dead end after passing a point where its three closest
