@@ -129,6 +129,11 @@ class PaperConfig:
     #                                 counts as back only going the way it left the start
     #                                 (False: either way; a vast cell under 0.8 m across
     #                                 then ends its circuit on the far side)
+    circuit_same_side: bool = True  # ours: a boundary circuit's pass within 0.4 m of its
+    #                                 start counts as back only facing an obstacle it
+    #                                 faced there (closest echo within 60 deg) (False: on
+    #                                 either side; a vast strip under 0.4 m across then
+    #                                 ends its circuit on the far side)
     meet_surround: bool = False     # True: a meet point is taken only where its three
     #                                 closest obstacles surround it (no gap over 190 deg
     #                                 between their bearings) (False, as the paper's

@@ -8,5 +8,7 @@ off, lest another rule enter the region instead.
 """
 
 #: meet points only where their three closest obstacles surround them and within delta, and a
-#: boundary circuit back at its start going either way (each switch's other setting)
-LATER_RULES_OFF = {'meet_surround': True, 'meet_margin': 0.0, 'circuit_same_way': False}
+#: boundary circuit back at its start going either way and on either side (each switch's
+#: other setting)
+LATER_RULES_OFF = {'meet_surround': True, 'meet_margin': 0.0, 'circuit_same_way': False,
+                   'circuit_same_side': False}

@@ -354,7 +354,9 @@ class MorseDecompCoverage:
                 d, a = self.mins[0]
                 return np.array([math.cos(a), math.sin(a)]) * self.cfg.max_speed
             tk.update(origin=self.pose[:2], length=0.0, last=self.pose[:2],
-                      first=len(circ.get('trace', ())))
+                      first=len(circ.get('trace', ())),
+                      facing=[a for d, a in self.mins
+                              if d - self.mins[0][0] <= self.cfg.event_tolerance])
             self._record(self.t_sweep, 'circuit', self.pose, f'boundary of vast node {n.id}')
         tk['length'] += math.dist(tk['last'], self.pose[:2])
         if math.dist(tk['last'], self.pose[:2]) > 1e-6:
@@ -378,7 +380,9 @@ class MorseDecompCoverage:
         passed = tk['length'] > 3.0 and tk.get('back', math.inf) < 0.8 and \
             back > tk['back'] and (not self.cfg.circuit_same_way or self._same_way(tk))
         tk['back'] = back                     # closest pass by the start counts as back
-        if 'closed_at' not in tk and ((tk['length'] > 3.0 and back < 0.4) or passed):
+        near = tk['length'] > 3.0 and back < 0.4 and \
+            (not self.cfg.circuit_same_side or self._same_side(tk))
+        if 'closed_at' not in tk and (near or passed):
             tk['closed_at'] = tk['length']    # back at the start
         # handed over at a cusp, the circuit starts among the cell's cusps: on past the start
         # by same_event, so that the Fig. 10 test senses the ones there
@@ -397,6 +401,22 @@ class MorseDecompCoverage:
         end and sensed the cusps there."""
         away, move = tk.get('away'), tk.get('move')
         return away is None or move is None or float(np.dot(away, move)) > 0.0
+
+    def _same_side(self, tk):
+        """The robot faces an obstacle it faced at the circuit's start: its closest echo's
+        bearing lies within 60 degrees of one of the closest echoes there (equal within the
+        equidistance tolerance: a start at a corner of the curve D = delta faces both
+        walls), so that, both delta away, the two echoes' points lie within delta of each
+        other. With ``circuit_same_side`` (ours), a pass within 0.4 m of the start counts as
+        back at the start only so. Where a vast cell is a strip under 0.4 m across, the
+        curve D = delta's far side passes within 0.4 m of the start facing the opposite
+        wall, and a strip's end within 0.4 m of a start at its side faces the wall across
+        the end, before the circuit has followed the strip's far end and sensed the cusps
+        there."""
+        if not tk.get('facing') or not self.mins:
+            return True
+        a = self.mins[0][1]
+        return any(math.cos(a - b) > 0.5 for b in tk['facing'])
 
     def _retraced(self, circ, tk, near=0.3, behind=3.0):
         """The circuit is back on a stretch of its own trace followed the same way (within
