@@ -36,13 +36,27 @@ class EventSensing:
                 abs(math.remainder(bearing - last, 2 * math.pi)) > math.radians(45):
             xy = gvdmod.cusp_from_ring(self.pose[:2], self.ranges, self.angles, self.det)
         if xy is not None:
-            head = self.task.get('heading') if self.mode == 'gvd' else None
+            head = self._trace_heading()
             # traced along its GVD edge: back along the path is into the narrow cell
             self._cusp_dir = self._gvd_direction() if head is None else \
                 self._way_in(head, xy)
             self._on_event(t, 'cusp', xy, 'D = delta where two closest obstacles meet')
             self._cusp_dir = None
             self._cusp_meet(t, xy)
+
+    def _trace_heading(self):
+        """The heading of the GVD trace under way (None outside one): the GVD law's tangent,
+        or, off a branch's start (its first 0.6 m, driven along the branch's bearing before
+        the law gives a tangent), that bearing. A cusp crossed there is still on the edge the
+        robot came along, and its way in is read from the path behind
+        (:meth:`TraceGVD._way_in`), not from the GVD law's present pair of closest obstacles:
+        where a vast cell's tip lies between two corners' cusps 0.4 m apart, that pair is
+        already the other corner's as D crosses delta, and the other corner's untraced edge
+        would be claimed for this cusp (gen_halls_5102)."""
+        br = self.task.get('branch') if self.mode == 'gvd' else None
+        if br is None:
+            return None
+        return self.task.get('heading') or br.heading
 
     def _sense_meet(self, t):
         """Meet point (Section III): three closest obstacles equidistant, two sweeps agreeing,
