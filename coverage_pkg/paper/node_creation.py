@@ -162,7 +162,8 @@ class CreateNode:
             if math.dist(c, xy) < near and self._created_from(v, w, self._cusp_dir):
                 return self.nodes[w]
         for m in self.nodes:
-            if m.kind == 'narrow' and any(self._arrived(b, xy, near, self._cusp_dir)
+            if m.kind == 'narrow' and any(self._arrived(b, xy, near, self._cusp_dir,
+                                                        self.cfg.radius)
                                           for b in m.branches):
                 return m
         return None
@@ -190,16 +191,40 @@ class CreateNode:
         return math.atan2(v[1], v[0]) if math.hypot(*v) > 0.2 else None
 
     @staticmethod
-    def _arrived(b, xy, near, into):
+    def _arrived(b, xy, near, into, width=None):
         """Branch ``b`` ended at the cusp ``xy`` on the same GVD edge: within ``near`` of it,
         traced out of the narrow cell opposite to the cusp's bearing ``into`` it (the cusps
-        of a small vast cell lie within a step of one another, each on its own edge)."""
+        of a small vast cell lie within a step of one another, each on its own edge), and,
+        given the robot's radius ``width``, on the line it was traced along
+        (:meth:`_on_traced_line`)."""
         if b.end != 'cusp' or b.end_xy is None or math.dist(b.end_xy, xy) >= near:
+            return False
+        if width is not None and not CreateNode._on_traced_line(b, xy, width):
             return False
         if into is None or b.end_heading is None:
             return True
         out = math.atan2(b.end_heading[1], b.end_heading[0])
         return abs(math.remainder(out - into - math.pi, 2 * math.pi)) < math.radians(45)
+
+    @staticmethod
+    def _on_traced_line(b, xy, width):
+        """The cusp ``xy`` lies within ``width`` (the robot's radius) of the line through
+        where branch ``b`` ended along the heading it was traced in. The robot tracing a GVD
+        edge sweeps a strip of its radius either side of the edge, and the edge goes on
+        through its cusp, so the cusp of the same edge lies in that strip continued past the
+        branch's end (how far along it depends on when it is sensed); a cusp farther across
+        lies on another edge (ours). A door in a room's wall 2 m from a corner leaves the
+        vast room 0.5 m from the corner edge's cusp, its edge 43 degrees from the corner
+        edge's reversed heading, its cusp 0.44 m across the corner edge's line."""
+        if b.end_heading is None:
+            return True
+        hx, hy = b.end_heading
+        n = math.hypot(hx, hy)
+        if n == 0:
+            return True
+        dx, dy = xy[0] - b.end_xy[0], xy[1] - b.end_xy[1]
+        off = abs(hx * dy - hy * dx) / n
+        return off < width
 
     def _created_from(self, v, w, into=None):
         """Vast node ``v`` was created while narrow node ``w`` was traced (its cusp ended a
