@@ -45,9 +45,11 @@ PRIMITIVES = ('lap', 'boundary', 'gvd', 'transit')
 DEV_SEEDS = (100, 200)
 SEEN_SEEDS = (300, 400, 500, 600, 700, 800, 900)
 #: broad samples of generated worlds, paper planner only (full report): first seed, count,
-#: label. Seeds 1000-1259 and 2000-2099 were held out, measured, and their failures worked on;
-#: seeds 3000-3099 are held out (measured once, at the end, then by this report)
-BROAD_SETS = ((1000, 260, 'seen'), (2000, 100, 'seen'), (3000, 100, 'held out'))
+#: label. Seeds 1000-1259, 2000-2099 and 3000-3099 were held out, measured, and their failures
+#: worked on; seeds 5000-5199 are a development sample; seeds 4000-4099 are held out (measured
+#: once, at the end, then by this report)
+BROAD_SETS = ((1000, 260, 'seen'), (2000, 100, 'seen'), (3000, 100, 'seen'),
+              (5000, 200, 'seen'), (4000, 100, 'held out'))
 #: sides (m) of the pillar halls of the scaling rows (full report only): area x4
 HALL_SIZES = (10.0, 20.0)
 #: packaged worlds compared in every report, before the generated ones
@@ -77,6 +79,9 @@ MODES = (
     ('circuits_either_way', {'circuit_same_way': False}, 'a boundary circuit back at its '
      'start at its closest pass either way round (the default only going the way it left '
      'the start, ours)'),
+    ('circuits_any_side', {'circuit_same_side': False}, 'a boundary circuit back at its start '
+     'at any pass within 0.4 m of it (the default only facing an obstacle it faced at the '
+     'start, ours)'),
     ('end_scan', {'end_scan': True}, 'ours: where a GVD edge ends at an obstacle ahead the '
      'robot halts and turns its ring through one cone spacing before it reads the gaps there '
      '(the default reads them from the one sweep that found the end)'),
@@ -270,9 +275,9 @@ def write_report(out_dir: Path, quick: bool = False) -> list[Path]:
     ``quick``: the hand-made worlds and one generated world, the grid planner on the hand-made
     worlds only (under two minutes); the full run uses six generated worlds of each
     development set (seeds 100-105, 200-205), of each set held out once and then looked at
-    (seeds 300-305 to 900-905) and the pillar halls, with
-    both planners, the paper planner's modes on the generated sets, and the paper planner
-    alone on broad samples (:data:`BROAD_SETS`: seeds 1000-1259, 2000-2099 and 3000-3099).
+    (seeds 300-305 to 900-905) and the pillar halls, with both planners, the paper planner's
+    modes on the generated sets, and the paper planner alone on broad samples
+    (:data:`BROAD_SETS`: seeds 1000-1259, 2000-2099, 3000-3099, 5000-5199 and 4000-4099).
     """
     from coverage_pkg.figure import render_coverage
     from coverage_pkg.worldgen import write_worlds
@@ -342,7 +347,7 @@ def write_report(out_dir: Path, quick: bool = False) -> list[Path]:
              'measured once, and have been measured since (changes that lost coverage on them '
              'are not in the planner; the worlds they left below 99 % when first measured, '
              'gen_rooms_502, gen_mixed_803, gen_maze_804 and gen_halls_902, were worked on and '
-             'are covered). The held-out worlds are the broad sample of seeds 3000-3099 below. '
+             'are covered). The held-out worlds are the broad sample of seeds 4000-4099 below. '
              'Update: '
              'CPU time of one planner update per sonar sweep (`time.thread_time`, free of '
              "other jobs' load); wall s: the whole run (sonar model, CVS accounting, planner).",
@@ -364,10 +369,11 @@ def write_report(out_dir: Path, quick: bool = False) -> list[Path]:
         lines += ['', '## The paper planner on broad samples of generated worlds', '',
                   'The paper planner alone (`python -m coverage_pkg.paper_measure --seeds A-B '
                   '--jobs 2`, the same figures as above) on many worlds of the generator per '
-                  'set. Seeds 1000-1259 and 2000-2099 (seen) were held out and measured, and the '
-                  'worlds they left below 99 % were worked on. Seeds 3000-3099 (held out) were '
-                  'measured once before this report, by `paper_measure` with the same planner, '
-                  'and by nothing else.', '']
+                  'set. Seeds 1000-1259, 2000-2099 and 3000-3099 (seen) were held out and '
+                  'measured, and the worlds they left below 99 % were worked on; seeds '
+                  '5000-5199 (seen) are a development sample, measured and worked on. Seeds '
+                  '4000-4099 (held out) were measured once before this report, by '
+                  '`paper_measure` with the same planner, and by nothing else.', '']
         lines += _table(['set', 'worlds', 'mean covered CVS', 'min covered',
                          'worlds below 99 %', 'mean path / bound', 'mean primitive share'],
                         [(b['set'], str(len(b['rows'])),
