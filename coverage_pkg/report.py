@@ -104,6 +104,19 @@ ABLATIONS = (
 )
 
 
+def _default_switches() -> str:
+    """The default's switches as the Modes table's text, read from :class:`PaperConfig`, so the
+    report names what the rows were measured against."""
+    cfg = PaperConfig()
+    flags = sorted({k for _, switches, _ in MODES for k in switches
+                    if isinstance(getattr(cfg, k), bool)})
+    names = [f'`{k}`' for k in flags]
+    on = [n for n, k in zip(names, flags) if getattr(cfg, k)]
+    off = [n for n, k in zip(names, flags) if not getattr(cfg, k)]
+    return (f'{", ".join(on)} on, {", ".join(off)} off, '
+            f'`meet_margin` {cfg.meet_margin:g} m')
+
+
 def _run(world, config, max_time=3000.0):
     r = run_kinematic(world, config, max_time=max_time, clock=time.thread_time)
     ut = np.asarray(r['update_times']) * 1e3
@@ -406,10 +419,9 @@ def write_report(out_dir: Path, quick: bool = False) -> list[Path]:
                      'path / bound'], where)
     lines += ['', '## Modes of the paper planner', '',
               "The paper planner above runs Algorithm 1 in Fig. 13's order (the default: "
-              '`handover`, `meet_scan`, `sliver_openings`, `circuit_join` and `cusp_meet` on, '
-              '`end_scan`, `circuit_sweeps` and `cusp_detour` off). Each row below changes one '
-              'switch, on the same generated worlds (`python -m coverage_pkg.paper_measure '
-              '--seeds A-B --set NAME=VALUE`).', '']
+              f'{_default_switches()}). Each row below changes one switch, on the same '
+              'generated worlds (`python -m coverage_pkg.paper_measure --seeds A-B --set '
+              'NAME=VALUE`).', '']
     base = {g: [r for r in rows if r['planner'] == 'paper' and r['set'] == g] for g in sets}
     lines += _table(['set', 'mode', 'what it changes', 'mean covered CVS', 'min covered',
                      'mean path / bound', 'mean primitive share', 'update p99 ms (max)'],
