@@ -207,7 +207,7 @@ class PaperPlanner(EventSensing, CreateNode, MorseDecompCoverage, TraceGVD, Find
         self.sweeps = 0
         self.D, self.mins, self.angles, self.ranges = math.inf, [], None, None
         self._gvd_mins = []                        # the closest distinct obstacles
-        self._prev_d, self._near_bearing, self._meet_cand = None, None, None
+        self._prev_d, self._near_echo, self._meet_cand = None, None, None
         self._passed_cand = None                   # a meet point just beyond delta
         self._hist, self.stuck_count, self.given_up = [], 0, []
         self.update_times = []

@@ -20,20 +20,24 @@ class EventSensing:
 
     def _sense_cusp(self, t, prev):
         """Cusp point (Section V-B): D crosses delta on the GVD (Fig. 11), or, while following
-        a boundary at D = delta, the closest obstacle jumps to another one (Fig. 10; on a GVD
-        edge the closest obstacle alternates between the two equidistant ones, which is no
-        cusp); placed where both are at delta. On a GVD edge, D must cross delta + 0.015 m:
-        between walls about 2 delta apart, echo noise makes D cross delta back and forth."""
+        a boundary at D = delta, the closest obstacle jumps to another one (Fig. 10: its echo
+        turns by more than 45 degrees between two sweeps, or a farther echo lies between the
+        two, :meth:`_two_obstacles`; on a GVD edge the closest obstacle alternates between
+        the two equidistant ones, which is no cusp); placed where both are at delta. On a GVD
+        edge, D must cross delta + 0.015 m: between walls about 2 delta apart, echo noise
+        makes D cross delta back and forth."""
         xy = None
         level = self.det + (0.015 if self.mode == 'gvd' else 0.0)
         if math.isfinite(prev) and (prev <= level) != (self.D <= level):
             xy = gvdmod.cusp_from_ring(self.pose[:2], self.ranges, self.angles, self.det)
-        # the closest obstacle's bearing, compared between sweeps of one boundary following
-        bearing = self.mins[0][1] if self.mins and self.mode == 'boundary' else None
-        last, self._near_bearing = self._near_bearing, bearing
-        if xy is None and self.mode == 'boundary' and last is not None and \
-                bearing is not None and abs(self.D - self.det) < 0.3 and \
-                abs(math.remainder(bearing - last, 2 * math.pi)) > math.radians(45):
+        # the closest echo, compared between sweeps of one boundary following
+        near = (*self.mins[0], self.ranges, self.angles) \
+            if self.mins and self.mode == 'boundary' else None
+        last, self._near_echo = self._near_echo, near
+        if xy is None and last is not None and near is not None and \
+                abs(self.D - self.det) < 0.3 and \
+                (abs(math.remainder(near[1] - last[1], 2 * math.pi)) > math.radians(45) or
+                 self._two_obstacles(last, near)):
             xy = gvdmod.cusp_from_ring(self.pose[:2], self.ranges, self.angles, self.det)
         if xy is not None:
             head = self._trace_heading()
@@ -43,6 +47,28 @@ class EventSensing:
             self._on_event(t, 'cusp', xy, 'D = delta where two closest obstacles meet')
             self._cusp_dir = None
             self._cusp_meet(t, xy)
+
+    def _two_obstacles(self, last, near):
+        """The closest echo of the last sweep and that of this one (``(range, bearing,
+        ranges, angles)`` each) lie on two obstacles: an echo of either sweep between their
+        bearings lies farther than both by more than ``PaperConfig.event_tolerance`` (the
+        echoes' equidistance tolerance). Along one flat or convex surface the distance has
+        no interior maximum (:func:`coverage_pkg.gvd.one_surface`); a maximum between the
+        two is a gap (a corridor's mouth) or a concave corner, and the closest point has
+        jumped from one obstacle to another (Fig. 10) however few degrees apart the two lie.
+        The ring reads bearings through cones 22.5 degrees apart, so the bearing's jump
+        alone cannot tell a new obstacle from the next cone on the same wall below two cone
+        spacings (45 degrees): a corridor 1.24 m wide seen from its cusp delta away turns
+        the closest echo through about one spacing (gen_maze_3014)."""
+        (d1, a1, *_), (d2, a2, *_) = last, near
+        span = math.remainder(a2 - a1, 2 * math.pi)
+        top = max(d1, d2) + self.cfg.event_tolerance
+        for ranges, angles in (last[2:], near[2:]):
+            for rk, ak in zip(ranges.tolist(), angles.tolist()):
+                rel = math.remainder(ak - a1, 2 * math.pi)
+                if 0 < rel * math.copysign(1, span) < abs(span) and rk > top:
+                    return True
+        return False
 
     def _trace_heading(self):
         """The heading of the GVD trace under way (None outside one): the GVD law's tangent,
