@@ -134,6 +134,14 @@ class PaperConfig:
     #                                 faced there (closest echo within 60 deg) (False: on
     #                                 either side; a vast strip under 0.4 m across then
     #                                 ends its circuit on the far side)
+    meet_side_pair: bool = False    # ours: going on past a meet point along a branch, the
+    #                                 robot follows the GVD edge of the closest obstacle on
+    #                                 either side of its heading until its two closest
+    #                                 obstacles lie either side of it (the branch's edge;
+    #                                 TraceGVD._side_pair) (False: the GVD law of the two
+    #                                 closest from the meet point on, which can follow a
+    #                                 neighbouring branch's edge; on, two worlds of the
+    #                                 714-world set lose 0.27-0.36 points: not safe)
     meet_surround: bool = False     # True: a meet point is taken only where its three
     #                                 closest obstacles surround it (no gap over 190 deg
     #                                 between their bearings) (False, as the paper's

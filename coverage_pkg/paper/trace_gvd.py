@@ -65,6 +65,13 @@ class TraceGVD:
         if head is not None and off < 0.6:
             return np.asarray(head) * self.cfg.max_speed   # off the meet point, onto its edge
         mins = self.gvd_mins
+        if head is not None and self.task.get('past_meet') and not self.task.get('on_edge'):
+            # going on past a meet point: the edge of an obstacle on either side of the way
+            pair = self._side_pair(mins, head, self.cfg.cone)
+            if pair is not None and off < self.det:
+                mins = pair
+            else:
+                self.task['on_edge'] = True
         n1 = np.array([math.cos(mins[0][1]), math.sin(mins[0][1])]) if mins else np.zeros(2)
         diff = n1 - np.array([math.cos(mins[1][1]), math.sin(mins[1][1])]) \
             if len(mins) >= 2 else np.zeros(2)
@@ -73,7 +80,7 @@ class TraceGVD:
         (d1, a1), (d2, a2) = mins[:2]
         n2 = np.array([math.cos(a2), math.sin(a2)])
         tang = np.array([-diff[1], diff[0]]) / np.linalg.norm(diff)
-        if head is not None and not self.task.get('on_edge'):
+        if head is not None and not self.task.get('on_edge') and not self.task.get('past_meet'):
             # Off a meet point along a branch's bearing: the GVD edge of the two closest
             # obstacles may be a neighbouring branch's (a door's edge leaves a meet point
             # next to the one sensed). The robot keeps the bearing until the edge it is on
@@ -475,6 +482,36 @@ class TraceGVD:
         self.task['heading'] = (math.cos(out[0]), math.sin(out[0]))
         self.task['meet'] = scan['meet']
         self.task['leave'] = self.pose[:2]
+        if self.cfg.meet_side_pair:
+            self.task['past_meet'] = True
+            self.task.pop('on_edge', None)
+
+    @staticmethod
+    def _side_pair(mins, head, cone):
+        """The two obstacles whose GVD edge the robot follows going on past a meet point
+        (``meet_side_pair``, ours), ``mins`` being the closest obstacles ((distance, bearing)
+        each, nearest first) and ``head`` its heading (the branch's bearing off the meet point,
+        then the edge's). The GVD edge that leaves a meet point through an opening runs
+        between the obstacle on its left and the one on its right. Where the two closest
+        obstacles lie on one side of the heading, their GVD edge crosses the way ahead: it is
+        a neighbouring branch's, leaving through another opening (near the meet point three
+        obstacles are about equally near, and a second meet point within the ring's error of
+        the first splits the branch's edge). The robot then follows the edge of the closest
+        obstacle on either side of its heading, the branch's own. None once the two closest
+        lie either side (the robot is on the branch's edge and the GVD law takes over), where
+        one of them lies ahead (within ``cone`` of the heading: on neither side, the edge
+        ends ahead and its end is read there), or where one side has no obstacle."""
+        def side(a):
+            return head[0] * math.sin(a) - head[1] * math.cos(a) > 0
+        h = math.atan2(head[1], head[0])
+        if len(mins) < 2 or side(mins[0][1]) != side(mins[1][1]) or \
+                any(abs(math.remainder(a - h, 2 * math.pi)) <= cone for _, a in mins[:2]):
+            return None
+        left = [m for m in mins if side(m[1])]
+        right = [m for m in mins if not side(m[1])]
+        if not left or not right:
+            return None
+        return sorted([min(left), min(right)])
 
     def _meet_obstacles(self, angles, ranges, xy, rho):
         """Which echoes of a scan taken near meet point ``xy`` lie on its closest obstacles:
