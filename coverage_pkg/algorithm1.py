@@ -142,6 +142,14 @@ class PaperConfig:
     #                                 closest from the meet point on, which can follow a
     #                                 neighbouring branch's edge; on, two worlds of the
     #                                 714-world set lose 0.27-0.36 points: not safe)
+    way_come_held: bool = False     # ours: at a meet point, where a peak of the range
+    #                                 holds the bearing to the robot's path behind, that
+    #                                 peak (and the peaks one edge with it) is the way
+    #                                 come and every other opening a branch, however near
+    #                                 (TraceGVD._meet_branches) (False: as on a gap's
+    #                                 branch only; elsewhere every peak within 60 deg of
+    #                                 that bearing is the way come; on, two worlds of the
+    #                                 714-world set lose 0.09-0.16 points: not safe)
     meet_surround: bool = False     # True: a meet point is taken only where its three
     #                                 closest obstacles surround it (no gap over 190 deg
     #                                 between their bearings) (False, as the paper's

@@ -455,7 +455,11 @@ class TraceGVD:
         one edge there: the way come is the one peak of the range that holds that bearing or
         lies nearest to it, within 60 degrees, with the peaks one edge with it
         (:meth:`_openings`, ``held_first``); every other opening is a branch, however near
-        (a corridor's other way at a T reached through a door beside a corner)."""
+        (a corridor's other way at a T reached through a door beside a corner). With
+        ``way_come_held`` (ours, off) the same holds on any branch where a peak holds the
+        bearing to the path behind: an opening beside the way come, within 60 degrees of
+        that bearing, is a branch (a pillar's far side, reached along the edge between two
+        pillars)."""
         head = np.asarray(self.task.get('heading') or self.task['branch'].heading or (1.0, 0.0))
         back = self._way_back(head, since=self.task.get('path0'))
         ang, rng = self._scan_echoes(scan)
@@ -464,9 +468,11 @@ class TraceGVD:
         gap = self.task['branch'].gap and near is not None
         if gap and self._off_span(back, near[0], near[1]) < math.radians(60):
             back = near[2]              # the one peak the robot came along
+        held = gap or (self.cfg.way_come_held and near is not None and
+                       self._off_span(back, near[0], near[1]) == 0.0)
         out = self._openings(ang, rng, [back], self.det,
                              self._meet_obstacles(ang, rng, scan['xy'], scan.get('rho')),
-                             held_first=gap, found=found)
+                             held_first=held, found=found)
         if not out:
             return
         a = math.atan2(head[1], head[0])
