@@ -134,22 +134,20 @@ class PaperConfig:
     #                                 faced there (closest echo within 60 deg) (False: on
     #                                 either side; a vast strip under 0.4 m across then
     #                                 ends its circuit on the far side)
-    meet_side_pair: bool = False    # ours: going on past a meet point along a branch, the
+    meet_side_pair: bool = True     # ours: going on past a meet point along a branch, the
     #                                 robot follows the GVD edge of the closest obstacle on
     #                                 either side of its heading until its two closest
     #                                 obstacles lie either side of it (the branch's edge;
     #                                 TraceGVD._side_pair) (False: the GVD law of the two
     #                                 closest from the meet point on, which can follow a
-    #                                 neighbouring branch's edge; on, two worlds of the
-    #                                 714-world set lose 0.27-0.36 points: not safe)
-    way_come_held: bool = False     # ours: at a meet point, where a peak of the range
+    #                                 neighbouring branch's edge)
+    way_come_held: bool = True      # ours: at a meet point, where a peak of the range
     #                                 holds the bearing to the robot's path behind, that
     #                                 peak (and the peaks one edge with it) is the way
     #                                 come and every other opening a branch, however near
     #                                 (TraceGVD._meet_branches) (False: as on a gap's
     #                                 branch only; elsewhere every peak within 60 deg of
-    #                                 that bearing is the way come; on, two worlds of the
-    #                                 714-world set lose 0.09-0.16 points: not safe)
+    #                                 that bearing is the way come)
     meet_surround: bool = False     # True: a meet point is taken only where its three
     #                                 closest obstacles surround it (no gap over 190 deg
     #                                 between their bearings) (False, as the paper's

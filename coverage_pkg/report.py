@@ -82,6 +82,12 @@ MODES = (
     ('circuits_any_side', {'circuit_same_side': False}, 'a boundary circuit back at its start '
      'at any pass within 0.4 m of it (the default only facing an obstacle it faced at the '
      'start, ours)'),
+    ('meets_two_closest', {'meet_side_pair': False}, 'past a meet point the GVD law of the '
+     'two closest obstacles at once (the default follows the edge of the closest obstacle on '
+     'either side of the heading while the two closest lie on one side, ours)'),
+    ('way_come_window', {'way_come_held': False}, 'at a meet point every peak within 60 '
+     'degrees of the bearing to the path behind is the way come (the default takes only the '
+     'peak that holds that bearing where one does, ours)'),
     ('end_scan', {'end_scan': True}, 'ours: where a GVD edge ends at an obstacle ahead the '
      'robot halts and turns its ring through one cone spacing before it reads the gaps there '
      '(the default reads them from the one sweep that found the end)'),

@@ -34,8 +34,10 @@ def test_the_wide_peak_holding_a_narrow_ones_top_is_the_opening(monkeypatch):
     """With the two peaks one opening along their joint span's middle, the robot leaves
     the meet point south-east into the hall's right part and the world is covered. With
     the first peak kept (the narrow one, towards the lower island), that bearing's edge is
-    traced already: the branch ends at once and the hall's right part stays unentered."""
-    cfg = PaperConfig(meet_surround=False)
+    traced already: the branch ends at once and the hall's right part stays unentered. Both
+    runs have ``meet_side_pair`` and ``way_come_held`` off: each of them alone leads the robot
+    into the hall's right part with the first peak kept."""
+    cfg = PaperConfig(meet_surround=False, meet_side_pair=False, way_come_held=False)
     r = run_kinematic(world_from_dict(HALL), cfg, max_time=3000)
     assert r['state'] == 'done' and r['covered_fraction'] >= 0.99
     assert _rightmost(r) > 7.5

@@ -456,7 +456,7 @@ class TraceGVD:
         lies nearest to it, within 60 degrees, with the peaks one edge with it
         (:meth:`_openings`, ``held_first``); every other opening is a branch, however near
         (a corridor's other way at a T reached through a door beside a corner). With
-        ``way_come_held`` (ours, off) the same holds on any branch where a peak holds the
+        ``way_come_held`` (ours, on) the same holds on any branch where a peak holds the
         bearing to the path behind: an opening beside the way come, within 60 degrees of
         that bearing, is a branch (a pillar's far side, reached along the edge between two
         pillars)."""
