@@ -61,6 +61,7 @@ class TraceGVD:
         head = self.task.get('heading') or br.heading
         leave = self.task.setdefault('leave', self.pose[:2])
         self.task.setdefault('path0', len(self.paths.xy) - 1)
+        self.task.setdefault('xy0', tuple(self.pose[:2]))
         off = math.dist(leave, self.pose[:2])
         if head is not None and off < 0.6:
             return np.asarray(head) * self.cfg.max_speed   # off the meet point, onto its edge
@@ -324,23 +325,32 @@ class TraceGVD:
         holds it."""
         return not any(self._holds(back, lo, hi) for lo, hi, _ in peaks)
 
-    def _way_back(self, heading, back=1.5, since=None):
+    def _way_back(self, heading, back=1.5, since=None, origin=None):
         """Bearing from here to the robot's path ``back`` m behind (-``heading`` when the
         path is shorter): the way the GVD edge came, also where it curved in its last metre
-        (into a corner's edge past a meet point the ring did not sense). ``since``: the
-        path's sample where the branch being traced began (:meth:`_to_path_behind`)."""
-        return self._to_path_behind(self.pose[:2], heading, back, since)
+        (into a corner's edge past a meet point the ring did not sense). ``since`` and
+        ``origin``: the path's sample and the place where the branch being traced began
+        (:meth:`_to_path_behind`)."""
+        return self._to_path_behind(self.pose[:2], heading, back, since, origin)
 
-    def _to_path_behind(self, xy, heading, back, since=None):
+    def _to_path_behind(self, xy, heading, back, since=None, origin=None):
         """Bearing from ``xy`` to the robot's path ``back`` m behind its last sample
         (-``heading`` when the path is shorter). With ``since`` (the path's sample where
-        the branch being traced began), not farther back than that sample: the path before
-        it is another primitive's (a transit to the branch's start from elsewhere), not the
-        edge come along; the sample itself when at least 0.3 m away, else -``heading``."""
+        the branch being traced began), not farther back than the branch's start: the path
+        before it is another primitive's (a transit to the branch's start from elsewhere, or
+        the start's move onto the GVD before CreateNode), not the edge come along; the
+        bearing is then to ``origin``, the place the branch began (the path's samples lie
+        0.3 m apart, so the sample ``since`` can lie up to 0.3 m back along that other
+        primitive: gen_rooms_6069, a start 1 m inside a door, whose sample before the GVD
+        lay towards the door), or to the sample ``since`` without ``origin``, when at least
+        0.3 m away, else -``heading``."""
         j = self.paths.back_index(back)
         if since is not None and (j is None or j < since):
-            j = since if 0 <= since < len(self.paths.xy) and \
-                math.dist(self.paths.xy[since], xy) >= 0.3 else None
+            q = origin if origin is not None else \
+                self.paths.xy[since] if 0 <= since < len(self.paths.xy) else None
+            if q is None or math.dist(q, xy) < 0.3:
+                return math.atan2(-heading[1], -heading[0])
+            return math.atan2(q[1] - xy[1], q[0] - xy[0])
         if j is None:
             return math.atan2(-heading[1], -heading[0])
         q = self.paths.xy[j]
@@ -461,7 +471,7 @@ class TraceGVD:
         that bearing, is a branch (a pillar's far side, reached along the edge between two
         pillars)."""
         head = np.asarray(self.task.get('heading') or self.task['branch'].heading or (1.0, 0.0))
-        back = self._way_back(head, since=self.task.get('path0'))
+        back = self._way_back(head, since=self.task.get('path0'), origin=self.task.get('xy0'))
         ang, rng = self._scan_echoes(scan)
         found = gvdmod.range_peaks(ang, rng, self.det, self.cfg.event_tolerance)
         near = min(found[3], key=lambda q: self._off_span(back, q[0], q[1]), default=None)
