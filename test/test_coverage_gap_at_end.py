@@ -47,7 +47,8 @@ def test_the_room_beside_the_end_of_the_hall_is_a_branch(monkeypatch):
     assert any(e[2] < 3.1 and e[3] < 3.7 for e in gaps)
 
     monkeypatch.setattr(PaperPlanner, '_way_back',
-                        lambda self, h, back=1.5, since=None: math.atan2(-h[1], -h[0]))
+                        lambda self, h, back=1.5, since=None, origin=None:
+                        math.atan2(-h[1], -h[0]))
     off = run_kinematic(world_from_dict(L_HALL), PaperConfig(**LATER_RULES_OFF), max_time=3000)
     assert off['state'] == 'done' and off['covered_fraction'] < 0.9
     assert _room_reached(off) < 3.7

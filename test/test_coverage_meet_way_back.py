@@ -47,7 +47,8 @@ def test_the_opening_beside_the_reversed_heading_is_a_branch(monkeypatch):
     assert _left_reached(r) < 3.0
 
     monkeypatch.setattr(PaperPlanner, '_way_back',
-                        lambda self, h, back=1.5, since=None: math.atan2(-h[1], -h[0]))
+                        lambda self, h, back=1.5, since=None, origin=None:
+                        math.atan2(-h[1], -h[0]))
     off = run_kinematic(world_from_dict(HALL), cfg, max_time=3000)
     assert off['state'] == 'done' and off['covered_fraction'] < 0.9
     assert _left_reached(off) > 5.0

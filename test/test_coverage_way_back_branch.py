@@ -47,7 +47,7 @@ def test_the_way_come_at_a_meet_point_is_read_from_the_branch(monkeypatch):
 
     old = PaperPlanner._way_back
 
-    def path_behind(self, heading, back=1.5, since=None):
+    def path_behind(self, heading, back=1.5, since=None, origin=None):
         return old(self, heading, back)              # the rule before: the path 1.5 m behind
 
     monkeypatch.setattr(PaperPlanner, '_way_back', path_behind)
