@@ -148,6 +148,14 @@ class PaperConfig:
     #                                 (TraceGVD._meet_branches) (False: as on a gap's
     #                                 branch only; elsewhere every peak within 60 deg of
     #                                 that bearing is the way come)
+    meet_own_obstacles: bool = False  # True (ours): a meet point sensed within
+    #                                 same_event of a known one, from over same_event
+    #                                 beyond where the robot sensed that one, is another
+    #                                 meet point where one of the known one's three closest
+    #                                 obstacles lies farther from it than its own three by
+    #                                 over 2 event_tolerance (the end of a hall past an
+    #                                 obstacle's meet point; EventSensing._other_meet)
+    #                                 (False: the known one)
     meet_surround: bool = False     # True: a meet point is taken only where its three
     #                                 closest obstacles surround it (no gap over 190 deg
     #                                 between their bearings) (False, as the paper's
@@ -223,6 +231,8 @@ class PaperPlanner(EventSensing, CreateNode, MorseDecompCoverage, TraceGVD, Find
         self._gvd_mins = []                        # the closest distinct obstacles
         self._prev_d, self._near_echo, self._meet_cand = None, None, None
         self._passed_cand = None                   # a meet point just beyond delta
+        self._meet_touch = {}                      # meet event -> its obstacles' points
+        self._meet_new = None                      # (rho, points) of a meet being sensed
         self._hist, self.stuck_count, self.given_up = [], 0, []
         self.update_times = []
         self.last = {}                             # no decomposed map (the node's markers)

@@ -115,9 +115,15 @@ class EventSensing:
         prev, self._meet_cand = self._meet_cand, m
         if prev is not None and math.dist(prev[:2], m[:2]) <= 0.15:
             self._meet_rho = (m[2] + prev[2]) / 2      # the meet scan's closest obstacles
-            self._on_event(t, 'meet', ((m[0] + prev[0]) / 2, (m[1] + prev[1]) / 2),
-                           f'three closest obstacles at {m[2]:.2f} m')
-            self._meet_rho = None
+            pts = [(self.pose[0] + d * math.cos(a), self.pose[1] + d * math.sin(a))
+                   for d, a in gvdmod.ring_minima(self.ranges, self.angles)[:3]]
+            here = (float(self.pose[0]), float(self.pose[1]))
+            self._meet_new = (self._meet_rho, pts, here)
+            idx = self._on_event(t, 'meet', ((m[0] + prev[0]) / 2, (m[1] + prev[1]) / 2),
+                                 f'three closest obstacles at {m[2]:.2f} m')
+            self._meet_rho, self._meet_new = None, None
+            if idx is not None:
+                self._meet_touch[idx] = (pts, here)
 
     def _passed_meet(self, xy):
         """Three closest obstacles equidistant just beyond delta (within the margin by which
@@ -159,7 +165,34 @@ class EventSensing:
         if kind == 'cusp' and n is not None and n.kind == 'vast':
             return any(math.dist(c, xy) < near and self._same_edge(c, self._cusp_dir)
                        for v, _, c in self.edges if self.same_node(v) == n.id)
-        return any(e[1] == kind and math.dist(e[2:4], xy) < near for e in self.events)
+        return any(e[1] == kind and math.dist(e[2:4], xy) < near and
+                   not (kind == 'meet' and self._other_meet(i, xy))
+                   for i, e in enumerate(self.events))
+
+    def _other_meet(self, idx, xy):
+        """The meet point being sensed at ``xy`` is another one than known meet event ``idx``
+        nearby (``meet_own_obstacles``, ours, off): a meet point is the centre of a circle touching
+        its three closest obstacles, so one that leaves a known one's closest obstacle
+        farther than its own three (by over twice the event tolerance: more than a wall's
+        point moves in distance when the point moves by ``same_event`` with the ring's
+        bearing error) touches another obstacle. Where a hall ends beyond an obstacle 2 delta
+        from its end wall, the edge past the obstacle's meet point (its two walls and the
+        obstacle) meets the two corners' edges at the end's meet point (the two walls and
+        the end wall) under ``same_event`` away: read as one, the corner the robot does not
+        follow is never a branch (gen_halls_5125). Only a meet point sensed by the
+        three-echo test is compared (its obstacles' points are kept), and only from over
+        ``same_event`` beyond where the robot sensed the known one: from one place (halted
+        there for its scan) the ring's three closest can be another triple of the same
+        junction (a T of corridors whose walls jog beside it, gen_maze_102)."""
+        if not self.cfg.meet_own_obstacles or self._meet_new is None:
+            return False
+        known = self._meet_touch.get(idx)
+        if known is None:
+            return False
+        (pts, there), (rho, _, here) = known, self._meet_new
+        if math.dist(here, there) <= self.cfg.same_event:
+            return False
+        return any(math.dist(q, xy) > rho + 2 * self.cfg.event_tolerance for q in pts)
 
     def _same_edge(self, c, into):
         """The cusp ``c`` lies on the GVD edge leaving along ``into`` (bearing into its narrow
