@@ -10,26 +10,12 @@ bearing to the path behind, though another peak of the range holds that bearing:
 the way come, it is no branch, and the room's part left of the lower pillar stays unentered.
 Read as a branch, the robot traces it and covers the room.
 """
-import numpy as np
 import pytest
+from test_coverage_meet_side_pair import ROOM, _lowest_left
 
 from coverage_pkg.algorithm1 import PaperConfig
 from coverage_pkg.kinematic import run_kinematic
 from coverage_pkg.world import world_from_dict
-
-ROOM = {'name': 'room_two_pillars', 'start': [18.081, 8.864],
-        'boundary': [[12.371, 5.452], [12.371, 11.287], [19.835, 11.287], [19.835, 5.452]],
-        'obstacles': [[[16.274, 9.079], [16.115, 9.251], [15.867, 9.256], [15.799, 8.725],
-                       [16.124, 8.695]],
-                      [[14.624, 7.659], [14.507, 7.619], [14.257, 7.267], [14.301, 7.0],
-                       [15.099, 6.944]]]}
-
-
-def _lowest_left(r):
-    """The least y the robot reached left of x 14 (the room's part left of the lower
-    pillar)."""
-    p = np.asarray(r['path'])
-    return float(p[p[:, 0] < 14.0, 1].min())
 
 
 @pytest.mark.slow                         # two closed-loop runs, about 3 s
