@@ -231,8 +231,9 @@ class PaperPlanner(EventSensing, CreateNode, MorseDecompCoverage, TraceGVD, Find
         self._gvd_mins = []                        # the closest distinct obstacles
         self._prev_d, self._near_echo, self._meet_cand = None, None, None
         self._passed_cand = None                   # a meet point just beyond delta
-        self._meet_touch = {}                      # meet event -> its obstacles' points
-        self._meet_new = None                      # (rho, points) of a meet being sensed
+        self._meet_touch = {}                      # meet event -> (its obstacles' points,
+        #                                            where it was sensed); meet_own_obstacles
+        self._meet_new = None                      # (rho, where) of a meet being sensed
         self._hist, self.stuck_count, self.given_up = [], 0, []
         self.update_times = []
         self.last = {}                             # no decomposed map (the node's markers)

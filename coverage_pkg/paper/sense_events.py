@@ -115,15 +115,17 @@ class EventSensing:
         prev, self._meet_cand = self._meet_cand, m
         if prev is not None and math.dist(prev[:2], m[:2]) <= 0.15:
             self._meet_rho = (m[2] + prev[2]) / 2      # the meet scan's closest obstacles
-            pts = [(self.pose[0] + d * math.cos(a), self.pose[1] + d * math.sin(a))
-                   for d, a in gvdmod.ring_minima(self.ranges, self.angles)[:3]]
             here = (float(self.pose[0]), float(self.pose[1]))
-            self._meet_new = (self._meet_rho, pts, here)
+            if self.cfg.meet_own_obstacles:
+                self._meet_new = (self._meet_rho, here)
             idx = self._on_event(t, 'meet', ((m[0] + prev[0]) / 2, (m[1] + prev[1]) / 2),
                                  f'three closest obstacles at {m[2]:.2f} m')
             self._meet_rho, self._meet_new = None, None
-            if idx is not None:
-                self._meet_touch[idx] = (pts, here)
+            if idx is not None and self.cfg.meet_own_obstacles:
+                self._meet_touch[idx] = ([(here[0] + d * math.cos(a), here[1] + d * math.sin(a))
+                                          for d, a in gvdmod.ring_minima(self.ranges,
+                                                                         self.angles)[:3]],
+                                         here)
 
     def _passed_meet(self, xy):
         """Three closest obstacles equidistant just beyond delta (within the margin by which
@@ -189,7 +191,7 @@ class EventSensing:
         known = self._meet_touch.get(idx)
         if known is None:
             return False
-        (pts, there), (rho, _, here) = known, self._meet_new
+        (pts, there), (rho, here) = known, self._meet_new
         if math.dist(here, there) <= self.cfg.same_event:
             return False
         return any(math.dist(q, xy) > rho + 2 * self.cfg.event_tolerance for q in pts)
