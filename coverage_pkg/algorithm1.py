@@ -148,7 +148,7 @@ class PaperConfig:
     #                                 (TraceGVD._meet_branches) (False: as on a gap's
     #                                 branch only; elsewhere every peak within 60 deg of
     #                                 that bearing is the way come)
-    meet_own_obstacles: bool = False  # True (ours): a meet point sensed within
+    meet_own_obstacles: bool = True   # ours: a meet point sensed within
     #                                 same_event of a known one, from over same_event
     #                                 beyond where the robot sensed that one, is another
     #                                 meet point where one of the known one's three closest

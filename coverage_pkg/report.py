@@ -89,10 +89,10 @@ MODES = (
     ('way_come_window', {'way_come_held': False}, 'at a meet point every peak within 60 '
      'degrees of the bearing to the path behind is the way come (the default takes only the '
      'peak that holds that bearing where one does, ours)'),
-    ('meets_own_obstacles', {'meet_own_obstacles': True}, 'ours: a meet point sensed within '
-     '0.5 m of a known one, from over 0.5 m beyond where that one was sensed, is another one '
-     "where one of the known one's three closest obstacles lies farther from it than its own "
-     'three by over 0.3 m (the default reads it as the known one)'),
+    ('meets_merged', {'meet_own_obstacles': False}, 'every meet point sensed within 0.5 m '
+     'of a known one is the known one (the default reads it as another one, from over 0.5 '
+     "m beyond where that one was sensed, where one of the known one's three closest "
+     'obstacles lies farther from it than its own three by over 0.3 m, ours)'),
     ('end_scan', {'end_scan': True}, 'ours: where a GVD edge ends at an obstacle ahead the '
      'robot halts and turns its ring through one cone spacing before it reads the gaps there '
      '(the default reads them from the one sweep that found the end)'),

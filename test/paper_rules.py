@@ -9,7 +9,8 @@ off, lest another rule enter the region instead.
 
 #: meet points only where their three closest obstacles surround them and within delta, a
 #: boundary circuit back at its start going either way and on either side, and past a meet
-#: point the GVD law of the two closest with every peak near the way behind the way come (each
-#: switch's other setting)
+#: point the GVD law of the two closest with every peak near the way behind the way come, and a
+#: meet point sensed near a known one that one (each switch's other setting)
 LATER_RULES_OFF = {'meet_surround': True, 'meet_margin': 0.0, 'circuit_same_way': False,
-                   'circuit_same_side': False, 'meet_side_pair': False, 'way_come_held': False}
+                   'circuit_same_side': False, 'meet_side_pair': False, 'way_come_held': False,
+                   'meet_own_obstacles': False}

@@ -29,20 +29,20 @@ def _top_right_reached(r):
 
 @pytest.mark.slow                         # two closed-loop runs, about 2 s
 def test_the_end_meet_point_beside_the_pillars_is_another_meet_point():
-    """With ``meet_own_obstacles`` (off in the default) the end's meet point, whose three
+    """With ``meet_own_obstacles`` (on in the default) the end's meet point, whose three
     closest obstacles leave the pillar 0.4 m farther away, is a meet point of its own: both
     corners' edges are branches, the robot traces the top-right one and the hall is
     covered. Off, it is taken for the pillar's meet point 0.43 m back: the robot follows
     the bottom corner's edge only, never rises above y 1.9 right of x 8, and the top-right
     corner stays unseen."""
-    r = run_kinematic(world_from_dict(HALL), PaperConfig(meet_own_obstacles=True),
-                      max_time=3000)
+    r = run_kinematic(world_from_dict(HALL), PaperConfig(), max_time=3000)
     assert r['state'] == 'done' and r['covered_fraction'] >= 0.99
     assert _top_right_reached(r) > 2.3
     meets = [e for e in r['planner'].events if e[1] == 'meet' and e[2] > 7.0 and
              e[4].startswith('three closest')]
     assert len(meets) == 2 and 0.3 < abs(meets[1][2] - meets[0][2]) < 0.5
 
-    off = run_kinematic(world_from_dict(HALL), PaperConfig(), max_time=3000)
+    off = run_kinematic(world_from_dict(HALL), PaperConfig(meet_own_obstacles=False),
+                        max_time=3000)
     assert off['state'] == 'done' and off['covered_fraction'] < 0.99
     assert _top_right_reached(off) < 1.95

@@ -173,7 +173,7 @@ class EventSensing:
 
     def _other_meet(self, idx, xy):
         """The meet point being sensed at ``xy`` is another one than known meet event ``idx``
-        nearby (``meet_own_obstacles``, ours, off): a meet point is the centre of a circle touching
+        nearby (``meet_own_obstacles``, ours, on): a meet point is the centre of a circle touching
         its three closest obstacles, so one that leaves a known one's closest obstacle
         farther than its own three (by over twice the event tolerance: more than a wall's
         point moves in distance when the point moves by ``same_event`` with the ring's
