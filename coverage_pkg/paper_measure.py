@@ -1,7 +1,8 @@
 """Measure the paper planner on generated worlds (issue 28's targets), ROS-free.
 
 ``python -m coverage_pkg.paper_measure --seeds 100-105 [--jobs 2] [--png DIR]`` generates the
-worlds of :mod:`coverage_pkg.worldgen` for the seeds, covers each with the paper planner
+worlds of :mod:`coverage_pkg.worldgen` for the seeds (``--world FILE.json``, repeatable:
+world files instead, such as ``../shared/worlds/*.json``), covers each with the paper planner
 (:mod:`coverage_pkg.algorithm1`) in :func:`coverage_pkg.kinematic.run_kinematic`, and prints
 per world and overall: the covered share of CVS, path / lower bound |CVS| / (2 delta), the
 share of the path driven by lap, boundary and GVD primitives (not transit), each primitive's
@@ -53,14 +54,18 @@ def parse_config(items: list[str]) -> dict[str, object]:
     return out
 
 
-def measure_world(seed: int, png_dir: str | None = None, max_time: float = 3000.0,
+def measure_world(seed: int | str, png_dir: str | None = None, max_time: float = 3000.0,
                   config: dict[str, object] | None = None) -> dict[str, object]:
-    """One generated world covered by the paper planner; the measured figures."""
+    """One world covered by the paper planner; the measured figures. ``seed``: the
+    generator's seed (int) or a world file's path (str)."""
     from coverage_pkg.kinematic import run_kinematic
     from coverage_pkg.world import load_world
     from coverage_pkg.worldgen import write_worlds
-    with tempfile.TemporaryDirectory() as tmp:
-        world = load_world(write_worlds(tmp, 1, seed=seed)[0])
+    if isinstance(seed, str):
+        world = load_world(seed)
+    else:
+        with tempfile.TemporaryDirectory() as tmp:
+            world = load_world(write_worlds(tmp, 1, seed=seed)[0])
     r = run_kinematic(world, PaperConfig(**(config or {})), max_time=max_time,
                       clock=time.thread_time)
     planner = r['planner']
@@ -86,14 +91,24 @@ def measure_world(seed: int, png_dir: str | None = None, max_time: float = 3000.
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument('--seeds', default='100-105', help="e.g. '100-105' or '100,300-305'")
+    ap.add_argument('--world', action='append', default=[], metavar='FILE.json',
+                    help='a world file instead of generated seeds (repeatable)')
     ap.add_argument('--jobs', type=int, default=1, help='worlds run in parallel')
     ap.add_argument('--png', default=None, help='directory for one picture per world')
     ap.add_argument('--max-sim-time', type=float, default=3000.0)
     ap.add_argument('--set', action='append', default=[], metavar='NAME=VALUE',
                     help="a PaperConfig field, e.g. 'circuit_sweeps=true' (repeatable)")
     args = ap.parse_args(argv)
-    seeds = parse_seeds(args.seeds)
     config = parse_config(args.set)
+    if args.world:
+        from coverage_pkg.world import load_world
+        from paramotion.errors import UserError
+        try:
+            for path in args.world:
+                load_world(path)          # a bad file: one line, before any run
+        except UserError as exc:
+            raise SystemExit(f'paper_measure: {exc}') from None
+    seeds = list(args.world) or parse_seeds(args.seeds)
     with ProcessPoolExecutor(max(1, args.jobs)) as ex:
         rows = list(ex.map(measure_world, seeds, [args.png] * len(seeds),
                            [args.max_sim_time] * len(seeds), [config] * len(seeds)))

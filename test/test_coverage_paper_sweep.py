@@ -37,3 +37,19 @@ def test_paper_measure_reads_seed_ranges_and_measures_a_world():
     row = measure_world(100, max_time=20.0)
     assert row['world'] == 'gen_mixed_100' and 0.0 < row['covered'] < 1.0
     assert 0.0 <= row['primitive'] <= 1.0 and 0.0 < row['median_ms'] <= row['p99_ms']
+
+
+def test_paper_measure_reads_world_files_and_refuses_a_bad_one(tmp_path, capsys):
+    """``--world FILE.json`` measures a world file instead of generated seeds; a bad file
+    stops the command with one line naming it, before any run."""
+    from coverage_pkg.paper_measure import main, measure_world
+    world = WORLDS / 'pillar_room.json'
+    row = measure_world(str(world), max_time=10.0)
+    assert row['world'] == 'pillar_room' and 0.0 < row['covered'] < 1.0
+    bad = tmp_path / 'bad.json'
+    bad.write_text('{"name": "bad", "boundary": [[0, 0], [1, 0]], "obstacles": [], '
+                   '"start": [0.5, 0.5]}')
+    with pytest.raises(SystemExit) as exc:
+        main(['--world', str(world), '--world', str(bad)])
+    assert str(exc.value).startswith('paper_measure: ') and 'bad.json' in str(exc.value)
+    assert '\n' not in str(exc.value) and capsys.readouterr().out == ''
