@@ -8,9 +8,10 @@ It watches the graph over DDS (``/clock``, ``/coverage/status``,
 ``/coverage/covered_fraction``) until the planner reports the end of coverage (``done``, or
 ``stuck``/``incomplete``) or ``--max-wall`` seconds pass, stops every process with Ctrl-C
 (SIGINT) as ``paramotion launch`` does, and then works from the bag alone: the robot path from
-``/coverage/ground_truth``, the decomposition graph from ``/coverage/graph``, the covered
-fraction recomputed from the path (the monitor's accounting), written to ``DIR/result.json`` and
-``DIR/coverage.png`` beside ``DIR/bag/``.
+``/coverage/ground_truth``, the decomposition graph, the planner's events and its path
+segments with their primitives from ``/coverage/graph``, the covered fraction recomputed from
+the path (the monitor's accounting), written to ``DIR/result.json`` and ``DIR/coverage.png``
+beside ``DIR/bag/``.
 """
 import datetime
 import json
@@ -174,6 +175,8 @@ def run_demo(out, rtf=2.0, max_wall=240.0, world=None, overwrite=False, echo=pri
         ev = _from_bag(tmp / 'bag', world_obj, radius, delta)
         sx, sy = map(float, world_obj.start)
         graph = _shift_graph(ev['graph'], sx, sy) if ev['graph'] else None
+        events = graph.pop('events', None) if graph else None
+        segments = graph.pop('path_segments', None) if graph else None
         state = seen['state']
         result = {
             'mode': 'processes (paramotion launch coverage)',
@@ -192,8 +195,21 @@ def run_demo(out, rtf=2.0, max_wall=240.0, world=None, overwrite=False, echo=pri
             'exit_codes': codes, 'bag_messages': info.message_count,
             'bag_complete': info.complete,
             'bag_topics': {t: v.count for t, v in sorted(info.topics.items())},
-            'frames': 'path and graph in map',
+            'frames': 'path, graph and events in map',
+            'hierarchical_graph': graph,
         }
+        if events is not None:
+            # Every event of the paper planner (sensed: critical, cusp, meet; node_created,
+            # cell_closed, branch_end, ...): [sim time, kind, x, y (map), detail].
+            result['events'] = [[e[0], e[1], round(e[2] + sx, 3), round(e[3] + sy, 3), e[4]]
+                                for e in events]
+        if segments is not None:
+            # Each path segment and the primitive that drove it (lap, boundary, gvd, transit).
+            result['path_segments'] = segments
+            lengths = {}
+            for kind, length in segments:
+                lengths[kind] = lengths.get(kind, 0.0) + length
+            result['primitive_lengths_m'] = lengths
         write_json(tmp / 'result.json', result)
         from coverage_pkg.figure import render_coverage
         title = (f"{world_obj.name}, {planner_name} planner, one process per node at {rtf:g}x: "

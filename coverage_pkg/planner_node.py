@@ -20,7 +20,10 @@ Outputs:
 * ``/coverage/status`` (diagnostic_msgs/DiagnosticArray, latched): state (``warmup``,
   ``covering_vast``, ``covering_narrow``, ``waiting_for_sonar``, ``stuck``, ``done``...), the
   current node, uncovered nodes, the last event;
-* ``/coverage/graph`` (std_msgs/String, latched): the hierarchical decomposition graph as JSON;
+* ``/coverage/graph`` (std_msgs/String, latched): the hierarchical decomposition graph as JSON,
+  published at every new event; the paper planner's also carries every event so far
+  (``events``: [sim time, kind, x, y (odom), detail]) and the path's segments with the
+  primitive that drove each (``path_segments``: [primitive, length m]);
 * ``/coverage/markers`` (visualization_msgs/MarkerArray, frame ``odom``): vast and narrow cells,
   GVD, Morse cell boundaries, critical, cusp and meet points, the graph, the path so far and
   the planned path.
@@ -205,19 +208,32 @@ class CoveragePlannerNode(ParamotionNode):
         self.cmd_pub.publish(twist)
         p = self.planner
         event = p.events[-1] if p.events else None
+        # the graph before the status: a watcher that stops the graph on an end state has
+        # the final graph and events recorded by then
+        stamp = len(p.events) if isinstance(p, PaperPlanner) else p.t_plan
+        if stamp != self._last_plan:
+            self._last_plan = stamp
+            self.graph_pub.publish(String(data=json.dumps(self.graph_message(p))))
+            now = p.t_plan
+            if now - self._last_markers >= self.params.marker_period or cmd.state == 'done':
+                self._last_markers = now
+                self.marker_pub.publish(self.markers())
         if cmd.state != self.state:
             self._status(cmd.state, event[4] if event else cmd.state)
             if cmd.state in ('done', 'stuck', 'incomplete', 'waiting_for_sonar'):
                 self.get_logger().info(f'coverage planner: {cmd.state}: '
                                        f'{event[4] if event else ""}')
-        stamp = len(p.events) if isinstance(p, PaperPlanner) else p.t_plan
-        if stamp != self._last_plan:
-            self._last_plan = stamp
-            self.graph_pub.publish(String(data=json.dumps(graph_dict(p))))
-            now = p.t_plan
-            if now - self._last_markers >= self.params.marker_period or cmd.state == 'done':
-                self._last_markers = now
-                self.marker_pub.publish(self.markers())
+
+    @staticmethod
+    def graph_message(p):
+        """The ``/coverage/graph`` JSON dict: the graph, and with the paper planner its events
+        and path segments, so that a bag alone gives what result.json reports."""
+        data = graph_dict(p)
+        if isinstance(p, PaperPlanner):
+            data['events'] = [[float(e[0]), e[1], float(e[2]), float(e[3]), e[4]]
+                              for e in p.events]
+            data['path_segments'] = [[k, round(float(v), 3)] for k, v in p.segments]
+        return data
 
     def _status(self, state, message):
         self.state = state

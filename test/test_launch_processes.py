@@ -160,7 +160,8 @@ def test_demo_runs_the_coverage_processes_and_writes_its_outputs(tmp_path):
     """README command 1, cut short by its wall limit: every process stops cleanly, the bag is
     complete, and result.json / coverage.png come from the bag (the covered fraction
     recomputed from the path recorded up to the monitor's last published value agrees with
-    that value; the final fraction is later by up to 2 s of sim time)."""
+    that value; the final fraction is later by up to 2 s of sim time), with the planner's
+    graph, events and path segments."""
     import json
 
     from coverage_pkg.demo import run_demo
@@ -176,5 +177,11 @@ def test_demo_runs_the_coverage_processes_and_writes_its_outputs(tmp_path):
     assert abs(r['covered_fraction_at_monitor'] - r['monitor_covered_fraction']) < 0.05
     assert r['covered_fraction_of_cvs'] >= r['covered_fraction_at_monitor']
     assert json.loads((out / 'result.json').read_text())['outcome'] == r['outcome']
+    # the graph, every event and the path's primitives, from the bag's /coverage/graph
+    assert r['hierarchical_graph']['nodes'] and r['events'][0][1] == 'node_created'
+    assert all(e[0] <= r['sim_time_s'] + 1.0 for e in r['events'])
+    assert {'meet', 'branch_end'} <= {e[1] for e in r['events']}
+    assert {k for k, _ in r['path_segments']} <= {'lap', 'boundary', 'gvd', 'transit'}
+    assert 0.0 < sum(r['primitive_lengths_m'].values()) <= 1.05 * r['path_length_m']
     assert (out / 'coverage.png').stat().st_size > 10_000
     assert (out / 'logs' / 'coverage_planner-3.log').is_file()
