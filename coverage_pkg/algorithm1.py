@@ -65,6 +65,15 @@ def parse_without(value: str | Iterable[str] | None) -> tuple[str, ...]:
     return out
 
 
+def primitive_lengths(segments: Iterable[tuple[str, float]]) -> dict[str, float]:
+    """Path length per primitive (lap, boundary, gvd, transit) of [primitive, length m]
+    segments."""
+    out = {}
+    for kind, length in segments:
+        out[kind] = out.get(kind, 0.0) + length
+    return out
+
+
 @dataclass
 class PaperConfig:
     """Parameters of the paper planner (SI units)."""
@@ -467,10 +476,7 @@ class PaperPlanner(EventSensing, CreateNode, MorseDecompCoverage, TraceGVD, Find
 
     def primitive_lengths(self) -> dict:
         """Path length per primitive (lap, boundary, gvd, transit)."""
-        out = {}
-        for kind, length in self.segments:
-            out[kind] = out.get(kind, 0.0) + length
-        return out
+        return primitive_lengths(self.segments)
 
     def to_dict(self) -> dict:
         """The hierarchical decomposition graph: nodes with their Reeb graphs / GVD branches

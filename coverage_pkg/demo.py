@@ -21,7 +21,7 @@ import threading
 import time
 from pathlib import Path
 
-from coverage_pkg.algorithm1 import parse_without
+from coverage_pkg.algorithm1 import parse_without, primitive_lengths
 from coverage_pkg.scenario import add_planner_args
 from paramotion.errors import UserError
 from paramotion.scenario_io import add_output_args, output_dir, write_json
@@ -134,7 +134,7 @@ def run_demo(out, rtf=2.0, max_wall=240.0, world=None, overwrite=False, echo=pri
              planner=None, without=()):
     """Launch, watch, stop, evaluate from the bag; returns the result dict. ``planner``
     (default: the launch file's) and ``without`` become the launch arguments."""
-    from coverage_pkg.scenario import _shift_graph
+    from coverage_pkg.scenario import _shift_events, _shift_graph
     from coverage_pkg.world import load_world
     from paramotion import launch_xml
     from paramotion.bag.reader import bag_info
@@ -201,15 +201,11 @@ def run_demo(out, rtf=2.0, max_wall=240.0, world=None, overwrite=False, echo=pri
         if events is not None:
             # Every event of the paper planner (sensed: critical, cusp, meet; node_created,
             # cell_closed, branch_end, ...): [sim time, kind, x, y (map), detail].
-            result['events'] = [[e[0], e[1], round(e[2] + sx, 3), round(e[3] + sy, 3), e[4]]
-                                for e in events]
+            result['events'] = _shift_events(events, sx, sy)
         if segments is not None:
             # Each path segment and the primitive that drove it (lap, boundary, gvd, transit).
             result['path_segments'] = segments
-            lengths = {}
-            for kind, length in segments:
-                lengths[kind] = lengths.get(kind, 0.0) + length
-            result['primitive_lengths_m'] = lengths
+            result['primitive_lengths_m'] = primitive_lengths(segments)
         write_json(tmp / 'result.json', result)
         from coverage_pkg.figure import render_coverage
         title = (f"{world_obj.name}, {planner_name} planner, one process per node at {rtf:g}x: "

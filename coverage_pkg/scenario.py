@@ -131,8 +131,7 @@ def run_coverage(world_path, delta=2.0, radius=0.25, detector='extended', bag_di
             'decisions': [list(d) for d in (p.decisions if p is not None else [])],
             # Every event (sensed: critical, cusp, meet; cell_closed, node_created, ...):
             # [sim time, kind, x, y (map), detail].
-            'events': [[e[0], e[1], round(e[2] + sx, 3), round(e[3] + sy, 3), e[4]]
-                       for e in (p.events if p is not None else [])],
+            'events': _shift_events(p.events if p is not None else [], sx, sy),
             'frames': 'path and graph in map; the planner works in odom (origin at start)',
             'path': np.round(path, 3).tolist(),
         }
@@ -150,6 +149,11 @@ def run_coverage(world_path, delta=2.0, radius=0.25, detector='extended', bag_di
         result['_layers'] = layers
         result['_uncovered'] = monitor.acc.uncovered_points()
         return result
+
+
+def _shift_events(events, dx, dy):
+    """Events [sim time, kind, x, y, detail] from the odom frame into the map frame."""
+    return [[e[0], e[1], round(e[2] + dx, 3), round(e[3] + dy, 3), e[4]] for e in events]
 
 
 def _shift_graph(g, dx, dy):
