@@ -65,8 +65,9 @@ def _traced(p, points, heading):
 def test_a_branch_along_a_traced_gvd_edge_ends_traced_one_across_it_stays_open():
     """Each GVD edge is traced once: a branch whose edge the robot has traced (from its other
     end) ends 'traced' without a move, and its narrow node is covered by FindUncoveredNode;
-    a branch that crosses the traced edge, or leaves it, stays open."""
-    p = _planner()
+    a branch that crosses the traced edge, or leaves it, stays open (``traced_way`` off: all
+    three points out along the branch on the traced edge)."""
+    p = _planner(traced_way=False)
     p.on_odometry(0.0, 0.0, 0.0, 0.0)
     _traced(p, [(x, 1.5) for x in np.arange(2.0, 8.0, 0.2)], (1.0, 0.0))
     n = Node(0, 'narrow', (1.6, 1.5))
@@ -85,9 +86,10 @@ def test_a_branch_along_a_traced_gvd_edge_ends_traced_one_across_it_stays_open()
 def test_a_branch_whose_traced_edge_ends_at_a_known_meet_point_ends_traced():
     """Each GVD edge is traced once, however short: a branch whose way out lies on a traced
     GVD edge up to a known meet point, where that edge turns away, ends 'traced'; without
-    the meet point the same branch stays open (2.4 m out is not on the traced edge)."""
+    the meet point the same branch stays open (2.4 m out is not on the traced edge;
+    ``traced_way`` off)."""
     for meet, end in (((3.3, 1.5, 0), 'traced'), (None, None)):
-        p = _planner()
+        p = _planner(traced_way=False)
         p.on_odometry(0.0, 0.0, 0.0, 0.0)
         _traced(p, [(x, 1.5) for x in np.arange(1.6, 3.3, 0.2)], (1.0, 0.0))
         _traced(p, [(3.3, y) for y in np.arange(1.7, 5.0, 0.2)], (0.0, 1.0))
@@ -98,6 +100,33 @@ def test_a_branch_whose_traced_edge_ends_at_a_known_meet_point_ends_traced():
         b = Branch((1.8, 1.5), (1.0, 0.0))
         n.branches.append(b)
         assert p._open_branches(n) == ([] if meet else [b]) and b.end == end
+
+
+def test_a_branch_whose_way_reaches_a_traced_edge_along_or_across_it_ends_traced():
+    """``traced_way`` (ours, on): a branch whose way out comes within 0.4 m of a traced GVD
+    edge, over 0.7 m from its start, running along the way (the branch's own edge, curving
+    off the straight way) or across it (the branch's edge ends on it) is traced already;
+    the same branches with no traced edge there, one whose only traced edge leaves its own
+    start, and one that diverges from a traced edge at 40 degrees stay open. With
+    ``traced_way`` off the branch across stays open."""
+    def branches():
+        return {'across': Branch((5.0, 0.2), (0.0, 1.0)),          # 1.3 m to the edge
+                'curving': Branch((1.6, 1.2), (math.cos(0.35), math.sin(0.35))),
+                'junction': Branch((5.0, 1.5), (0.0, 1.0)),        # leaves the edge
+                'diverging': Branch((2.2, 1.5), (math.cos(0.70), math.sin(0.70)))}
+    for traced_way, edge, closed in ((True, True, {'across', 'curving'}),
+                                     (True, False, set()), (False, True, set())):
+        p = _planner(traced_way=traced_way)
+        p.on_odometry(0.0, 0.0, 0.0, 0.0)
+        if edge:
+            _traced(p, [(x, 1.5) for x in np.arange(2.0, 8.0, 0.2)], (1.0, 0.0))
+        n = Node(0, 'narrow', (1.6, 1.5))
+        p.nodes.append(n)
+        b = branches()
+        n.branches += list(b.values())
+        open_ = p._open_branches(n)
+        assert {k for k, v in b.items() if v.end == 'traced'} == closed, (traced_way, edge)
+        assert [v for v in b.values() if v.end is None] == open_
 
 
 def test_trace_joining_a_traced_edge_along_it_is_recognised_not_one_crossing_it():

@@ -136,7 +136,8 @@ class TraceGVD:
         """The untraced branches of narrow node ``n``. A branch whose GVD edge the robot has
         traced already (0.8, 1.6 and 2.4 m out along its heading all lie within 0.4 m of a
         traced GVD edge: an edge reached from its other end, or from another meet point
-        sensed on it) is that edge: it ends 'traced' and is not traced again."""
+        sensed on it; with ``traced_way``, one of them near a traced edge that runs along the
+        way or across it) is that edge: it ends 'traced' and is not traced again."""
         out = []
         for b in n.branches:
             if b.end is None and b.heading is not None and self._edge_traced(b.start,
@@ -173,7 +174,11 @@ class TraceGVD:
     def _edge_traced(self, start, heading):
         """0.8, 1.6 and 2.4 m out along ``heading`` lie on a traced GVD edge; an edge that
         ends sooner at a known meet point (within 0.5 m of the way out, beyond 0.5 m from
-        ``start``) is tested up to that meet point, at least at 0.8 m."""
+        ``start``) is tested up to that meet point, at least at 0.8 m. With ``traced_way``
+        (ours, on), also where the way out reaches a traced edge
+        (:meth:`_way_reaches_trace`)."""
+        if self.cfg.traced_way and self._way_reaches_trace(start, heading):
+            return True
         meets = [m[:2] for k in self.nodes for m in k.meets
                  if math.dist(m[:2], start) > 0.5]
         for s in (0.8, 1.6, 2.4):
@@ -183,6 +188,27 @@ class TraceGVD:
             if any(math.dist(m, q) < 0.5 for m in meets):
                 return True
         return True
+
+    def _way_reaches_trace(self, start, heading):
+        """One of the points 0.8, 1.6 and 2.4 m out along a branch's ``heading`` lies within
+        0.4 m of a point of a traced GVD edge over 0.7 m from the branch's ``start`` whose
+        tangent runs along the heading (within 30 degrees: the branch's own edge, reached from
+        its other end, where it curves off the straight way out and the three points do not
+        all lie on it) or across it (over 50 degrees: GVD edges meet only at meet points, so
+        the branch's edge ends on the traced one within 2.4 m, a stretch the detector has
+        swept from both ends). A traced edge within 0.7 m of the start is one leaving the
+        same meet point; one at 30-50 degrees is a neighbour diverging from the same junction
+        (``gen_maze_105``: the corridor to the rest of the world); neither counts."""
+        across = math.cos(math.radians(50.0))
+        for s in (0.8, 1.6, 2.4):
+            q = (start[0] + s * heading[0], start[1] + s * heading[1])
+            for _, p in self._trace_points(q, 0.4, None, None):
+                if math.hypot(p[3], p[4]) < 0.5 or math.dist(p[:2], start) < 0.7:
+                    continue                  # no tangent recorded; the same junction
+                c = abs(p[3] * heading[0] + p[4] * heading[1])
+                if c > 0.87 or c < across:
+                    return True
+        return False
 
     def _near_trace(self, q, within, before=None, along=None):
         """A point of a traced GVD edge lies within ``within`` of ``q`` (traced before sweep
