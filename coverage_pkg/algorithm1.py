@@ -167,9 +167,11 @@ class PaperConfig:
     #                                 (False: the known one)
     traced_way: bool = True         # ours: a branch whose way out (0.8, 1.6 or 2.4 m along
     #                                 its bearing) comes within 0.4 m of a traced GVD edge
-    #                                 running along that way or across it is traced already
-    #                                 (TraceGVD._way_reaches_trace) (False: only where all
-    #                                 three points lie on a traced edge)
+    #                                 running across that way, or along it towards the
+    #                                 branch's start or from a trace that passed the start,
+    #                                 is traced already (TraceGVD._way_reaches_trace)
+    #                                 (False: only where all three points lie on a traced
+    #                                 edge)
     meet_surround: bool = False     # True: a meet point is taken only where its three
     #                                 closest obstacles surround it (no gap over 190 deg
     #                                 between their bearings) (False, as the paper's
@@ -300,9 +302,12 @@ class PaperPlanner(EventSensing, CreateNode, MorseDecompCoverage, TraceGVD, Find
             head = self.task.get('heading') or (0.0, 0.0)
             self._gvd_last = self.pose[:2]
             key = (int(self.pose[0] // 1.0), int(self.pose[1] // 1.0))
+            br = self.task.get('branch')
             self.gvd_trace.setdefault(key, []).append((*self.pose[:2], self.sweeps,
                                                        float(head[0]), float(head[1]),
-                                                       self.current))
+                                                       self.current,
+                                                       None if br is None else
+                                                       tuple(br.start)))
         if t - self.t_first_sweep >= self.cfg.warmup and self.mode in ('lap', 'boundary',
                                                                       'gvd'):
             self._sense_cusp(t, prev)

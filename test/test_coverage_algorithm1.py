@@ -104,22 +104,35 @@ def test_a_branch_whose_traced_edge_ends_at_a_known_meet_point_ends_traced():
 
 def test_a_branch_whose_way_reaches_a_traced_edge_along_or_across_it_ends_traced():
     """``traced_way`` (ours, on): a branch whose way out comes within 0.4 m of a traced GVD
-    edge, over 0.7 m from its start, running along the way (the branch's own edge, curving
-    off the straight way) or across it (the branch's edge ends on it) is traced already;
-    the same branches with no traced edge there, one whose only traced edge leaves its own
-    start, and one that diverges from a traced edge at 40 degrees stay open. With
-    ``traced_way`` off the branch across stays open."""
+    edge, over 0.7 m from its start, ends 'traced' where that edge runs across the way (the
+    branch's edge ends on it), where it runs along the way towards the branch's start (the
+    branch's edge reached from its other end, curving off the straight way), or where it
+    runs along the way from a trace that passed the branch's start. Open stay: a branch that
+    leaves the traced edge at a junction, one beside a trace that left the same start in the
+    same direction (a sibling edge), the same branches with no traced edge there, and all of
+    them with ``traced_way`` off."""
+    def trace(p, points, heading, start):
+        for x, y in points:
+            p.gvd_trace.setdefault((int(x // 1.0), int(y // 1.0)), []).append(
+                (x, y, 0, *heading, 0, start))
+
     def branches():
         return {'across': Branch((5.0, 0.2), (0.0, 1.0)),          # 1.3 m to the edge
-                'curving': Branch((1.6, 1.2), (math.cos(0.35), math.sin(0.35))),
+                'towards': Branch((1.6, 1.2), (math.cos(0.35), math.sin(0.35))),
                 'junction': Branch((5.0, 1.5), (0.0, 1.0)),        # leaves the edge
-                'diverging': Branch((2.2, 1.5), (math.cos(0.70), math.sin(0.70)))}
-    for traced_way, edge, closed in ((True, True, {'across', 'curving'}),
+                'sibling': Branch((10.0, 3.3), (math.cos(0.2), math.sin(0.2))),
+                'through': Branch((10.0, 6.0), (math.cos(0.2), math.sin(0.2)))}
+    for traced_way, edge, closed in ((True, True, {'across', 'towards', 'through'}),
                                      (True, False, set()), (False, True, set())):
         p = _planner(traced_way=traced_way)
         p.on_odometry(0.0, 0.0, 0.0, 0.0)
         if edge:
-            _traced(p, [(x, 1.5) for x in np.arange(2.0, 8.0, 0.2)], (1.0, 0.0))
+            # traced towards -x, from a meet point at (8, 1.5)
+            trace(p, [(x, 1.5) for x in np.arange(8.0, 2.0, -0.2)], (-1.0, 0.0), (8.0, 1.5))
+            # a sibling's trace leaving (10, 3.3) along +x
+            trace(p, [(x, 3.3) for x in np.arange(10.0, 14.0, 0.2)], (1.0, 0.0), (10.0, 3.3))
+            # a trace from (7, 6) along +x through (10, 6)
+            trace(p, [(x, 6.0) for x in np.arange(7.0, 14.0, 0.2)], (1.0, 0.0), (7.0, 6.0))
         n = Node(0, 'narrow', (1.6, 1.5))
         p.nodes.append(n)
         b = branches()

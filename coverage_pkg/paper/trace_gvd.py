@@ -191,24 +191,37 @@ class TraceGVD:
 
     def _way_reaches_trace(self, start, heading):
         """One of the points 0.8, 1.6 and 2.4 m out along a branch's ``heading`` lies within
-        0.4 m of a point of a traced GVD edge over 0.7 m from the branch's ``start`` whose
-        tangent runs along the heading (within 30 degrees: the branch's own edge, reached from
-        its other end, where it curves off the straight way out and the three points do not
-        all lie on it) or across it (over 50 degrees: GVD edges meet only at meet points, so
-        the branch's edge ends on the traced one within 2.4 m, a stretch the detector has
-        swept from both ends). A traced edge within 0.7 m of the start is one leaving the
-        same meet point; one at 30-50 degrees is a neighbour diverging from the same junction
-        (``gen_maze_105``: the corridor to the rest of the world); neither counts."""
+        0.4 m of a point of a traced GVD edge over 0.7 m from the branch's ``start`` where
+        that edge runs across the way (its tangent over 50 degrees from the heading: GVD
+        edges meet only at meet points, so the branch's edge ends on the traced one within
+        2.4 m, a stretch the detector has swept from both ends), or along it (within 30
+        degrees) either towards the start (the branch's own edge, reached from its other end,
+        curving off the straight way out so that the three points do not all lie on it) or
+        away from it on a trace that passed the start (the edge traced on through the
+        branch's meet point before that was sensed). A traced edge within 0.7 m of the start
+        leaves or reaches the same meet point (``gen_maze_1216``); one along the way from a
+        trace that began at the start is a sibling edge diverging from it
+        (``gen_mixed_7023``), one at 30-50 degrees a neighbour (``gen_maze_105``): none
+        counts."""
         across = math.cos(math.radians(50.0))
         for s in (0.8, 1.6, 2.4):
             q = (start[0] + s * heading[0], start[1] + s * heading[1])
             for _, p in self._trace_points(q, 0.4, None, None):
                 if math.hypot(p[3], p[4]) < 0.5 or math.dist(p[:2], start) < 0.7:
                     continue                  # no tangent recorded; the same junction
-                c = abs(p[3] * heading[0] + p[4] * heading[1])
-                if c > 0.87 or c < across:
+                c = p[3] * heading[0] + p[4] * heading[1]
+                if abs(c) < across or c < -0.87:
+                    return True
+                if c > 0.87 and len(p) > 6 and p[6] is not None and \
+                        math.dist(p[6], start) > 0.5 and self._trace_passes(p[6], start):
                     return True
         return False
+
+    def _trace_passes(self, branch_start, xy):
+        """The trace of the branch that started at ``branch_start`` passed within 0.5 m of
+        ``xy``."""
+        return any(p[6] == branch_start for _, p in self._trace_points(xy, 0.5, None, None)
+                   if len(p) > 6)
 
     def _near_trace(self, q, within, before=None, along=None):
         """A point of a traced GVD edge lies within ``within`` of ``q`` (traced before sweep
