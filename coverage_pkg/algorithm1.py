@@ -165,13 +165,15 @@ class PaperConfig:
     #                                 over 2 event_tolerance (the end of a hall past an
     #                                 obstacle's meet point; EventSensing._other_meet)
     #                                 (False: the known one)
-    traced_way: bool = True         # ours: a branch whose way out (0.8, 1.6 or 2.4 m along
+    traced_way: bool = False        # ours: a branch whose way out (0.8, 1.6 or 2.4 m along
     #                                 its bearing) comes within 0.4 m of a traced GVD edge
     #                                 running across that way, or along it towards the
     #                                 branch's start or from a trace that passed the start,
     #                                 is traced already (TraceGVD._way_reaches_trace)
     #                                 (False: only where all three points lie on a traced
-    #                                 edge)
+    #                                 edge; True loses a room in Algorithm 1's pseudocode
+    #                                 order: a meet point missed by the first trace of an
+    #                                 edge is not sensed on a second)
     meet_surround: bool = False     # True: a meet point is taken only where its three
     #                                 closest obstacles surround it (no gap over 190 deg
     #                                 between their bearings) (False, as the paper's

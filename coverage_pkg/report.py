@@ -94,9 +94,10 @@ MODES = (
      'of a known one is the known one (the default reads it as another one, from over 0.5 '
      "m beyond where that one was sensed, where one of the known one's three closest "
      'obstacles lies farther from it than its own three by over 0.3 m, ours)'),
-    ('ways_on_the_edge', {'traced_way': False}, 'a branch is traced already only where 0.8, '
-     '1.6 and 2.4 m out along its bearing all lie on a traced GVD edge (the default also '
-     'where one of them lies near a traced edge that runs along the way or across it, ours)'),
+    ('traced_way', {'traced_way': True}, 'ours: a branch is traced already also where one '
+     'of the points 0.8, 1.6 and 2.4 m out along its bearing lies near a traced GVD edge '
+     "that runs across the way, or along it towards the branch's start or from a trace "
+     'that passed the start (the default: only where all three lie on a traced edge)'),
     ('end_scan', {'end_scan': True}, 'ours: where a GVD edge ends at an obstacle ahead the '
      'robot halts and turns its ring through one cone spacing before it reads the gaps there '
      '(the default reads them from the one sweep that found the end)'),

@@ -175,7 +175,7 @@ class TraceGVD:
         """0.8, 1.6 and 2.4 m out along ``heading`` lie on a traced GVD edge; an edge that
         ends sooner at a known meet point (within 0.5 m of the way out, beyond 0.5 m from
         ``start``) is tested up to that meet point, at least at 0.8 m. With ``traced_way``
-        (ours, on), also where the way out reaches a traced edge
+        (ours, off), also where the way out reaches a traced edge
         (:meth:`_way_reaches_trace`)."""
         if self.cfg.traced_way and self._way_reaches_trace(start, heading):
             return True
