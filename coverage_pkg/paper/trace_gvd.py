@@ -136,8 +136,8 @@ class TraceGVD:
         """The untraced branches of narrow node ``n``. A branch whose GVD edge the robot has
         traced already (0.8, 1.6 and 2.4 m out along its heading all lie within 0.4 m of a
         traced GVD edge: an edge reached from its other end, or from another meet point
-        sensed on it; with ``traced_way``, one of them near a traced edge that runs along the
-        way or across it) is that edge: it ends 'traced' and is not traced again."""
+        sensed on it; with ``traced_way``, also as :meth:`_way_reaches_trace` tests) is that
+        edge: it ends 'traced' and is not traced again."""
         out = []
         for b in n.branches:
             if b.end is None and b.heading is not None and self._edge_traced(b.start,
