@@ -262,7 +262,9 @@ class PaperPlanner(EventSensing, CreateNode, MorseDecompCoverage, TraceGVD, Find
         self._law = None                           # this transit step's control law:
         #                                            'gvd' along a traced GVD edge,
         #                                            'boundary' along a wall at D = delta
-        self.gvd_trace = {}                        # points of traced GVD edges, by 1 m bucket
+        self.gvd_trace = {}                        # points of traced GVD edges, by 1 m bucket:
+        #                                            (x, y, sweep, heading x, heading y,
+        #                                            node, start of the tracing branch)
         self._gvd_last = None
 
     def on_odometry(self, t: float, x: float, y: float, yaw: float) -> None:

@@ -59,7 +59,7 @@ def _traced(p, points, heading):
     """Points of a GVD edge as if traced (sweep 0) along ``heading``."""
     for x, y in points:
         p.gvd_trace.setdefault((int(x // 1.0), int(y // 1.0)), []).append(
-            (x, y, 0, *heading))
+            (x, y, 0, *heading, 0, None))
 
 
 def test_a_branch_along_a_traced_gvd_edge_ends_traced_one_across_it_stays_open():

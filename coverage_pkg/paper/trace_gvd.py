@@ -203,7 +203,7 @@ class TraceGVD:
         trace that began at the start is a sibling edge diverging from it
         (``gen_mixed_7023``), one at 30-50 degrees a neighbour (``gen_maze_105``): none
         counts."""
-        across = math.cos(math.radians(50.0))
+        across, passed = math.cos(math.radians(50.0)), None
         for s in (0.8, 1.6, 2.4):
             q = (start[0] + s * heading[0], start[1] + s * heading[1])
             for _, p in self._trace_points(q, 0.4, None, None):
@@ -212,16 +212,12 @@ class TraceGVD:
                 c = p[3] * heading[0] + p[4] * heading[1]
                 if abs(c) < across or c < -0.87:
                     return True
-                if c > 0.87 and len(p) > 6 and p[6] is not None and \
-                        math.dist(p[6], start) > 0.5 and self._trace_passes(p[6], start):
-                    return True
+                if c > 0.87 and p[6] is not None and math.dist(p[6], start) > 0.5:
+                    if passed is None:    # the branches whose traces passed the start
+                        passed = {t[6] for _, t in self._trace_points(start, 0.5, None, None)}
+                    if p[6] in passed:
+                        return True
         return False
-
-    def _trace_passes(self, branch_start, xy):
-        """The trace of the branch that started at ``branch_start`` passed within 0.5 m of
-        ``xy``."""
-        return any(p[6] == branch_start for _, p in self._trace_points(xy, 0.5, None, None)
-                   if len(p) > 6)
 
     def _near_trace(self, q, within, before=None, along=None):
         """A point of a traced GVD edge lies within ``within`` of ``q`` (traced before sweep
@@ -238,7 +234,8 @@ class TraceGVD:
 
     def _trace_points(self, q, within, before, along):
         """(distance, point) of each traced GVD edge point (x, y, sweep, heading x, heading y,
-        tracing node) matching :meth:`_near_trace`'s test, from the 1 m buckets around ``q``."""
+        tracing node, start of the tracing branch) matching :meth:`_near_trace`'s test, from
+        the 1 m buckets around ``q``."""
         bx, by = int(q[0] // 1.0), int(q[1] // 1.0)
         for gx in (bx - 1, bx, bx + 1):
             for gy in (by - 1, by, by + 1):
