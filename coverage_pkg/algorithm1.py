@@ -99,6 +99,11 @@ class PaperConfig:
     handover: bool = True           # Fig. 13's order: a cusp met while tracing hands over
     #                                 to the vast node beyond it at once (False: Algorithm
     #                                 1's pseudocode order, the narrow node traced whole)
+    merge_continues: bool = False   # True: a narrow node whose GVD trace joins an edge an
+    #                                 earlier narrow node traced hands over to that node,
+    #                                 which goes on being covered at once (False: the later
+    #                                 node is covered there, and FindUncoveredNode chooses
+    #                                 the next node, the earlier one among the uncovered)
     circuit_sweeps: bool = False    # ours: no laps in a cell its circuit has swept (loses
     #                                 coverage on held-out worlds: not safe)
     cusp_detour: bool = False       # ours: a narrow node whose cusp the boundary circuit

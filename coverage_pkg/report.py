@@ -63,6 +63,9 @@ MODES = (
     ('algorithm1_order', {'handover': False}, "Algorithm 1's pseudocode order: a narrow node "
      'is traced whole before FindUncoveredNode, so a corridor traced past a cusp is driven '
      'back to it'),
+    ('merge_continues', {'merge_continues': True}, 'a narrow node found to be an earlier one '
+     '(same_cell) hands over to it, which goes on being covered at once (the default goes on '
+     'with FindUncoveredNode, ours)'),
     ('one_sweep_meets', {'meet_scan': False}, "a meet point's branches read from the one sweep "
      'that sensed it (the default halts there and turns the ring through one cone spacing, '
      'ours)'),

@@ -249,7 +249,13 @@ class TraceGVD:
         """A trace of narrow node ``n`` has joined a GVD edge traced while covering narrow
         node ``owner``: the two are one narrow cell (a corridor entered through both of its
         cusps, Fig. 13's Cs2 and Cs3). ``n`` becomes that node: its branches, meet points and
-        edges are the earlier node's, which goes on being covered."""
+        edges are the earlier node's, uncovered while it has open branches. The trace that
+        joined has covered ``n`` as far as it went, so Algorithm 1 goes on with
+        FindUncoveredNode, which chooses among all uncovered nodes, the merged one as one
+        of them (with ``merge_continues``, the merged node goes on being covered at once,
+        however far its open branches lie: a robot that merges three corner cells of one
+        room into the start's corridor node, one after another, drove to the far ends of
+        the corridors between them, ``gen_mixed_9094``)."""
         if owner is None:
             return None
         m = self.nodes[self.same_node(owner)]
@@ -266,7 +272,7 @@ class TraceGVD:
                                     f'narrow node {hi.id} is narrow node {lo.id}: its GVD '
                                     "trace joined that node's edge")
         lo.covered = False
-        self.current = lo.id
+        self.current = lo.id if self.cfg.merge_continues else None
         return None
 
     def _cusp_ahead(self, heading):
