@@ -98,10 +98,8 @@ class TraceGVD:
             if br.opened_by is None:      # the start: the GVD edge leaves it both ways,
                 n.branches.append(Branch(self.pose[:2], tuple(-np.asarray(head)), None))
                 a = math.atan2(head[1], head[0])      # and other edges through its gaps
-                for b in self._openings(self.angles, self.ranges, [a], self.det):
-                    if abs(math.remainder(b - a - math.pi, 2 * math.pi)) > math.radians(30):
-                        n.branches.append(Branch(self.pose[:2], (math.cos(b), math.sin(b)),
-                                                 None))
+                for b in self._start_openings(a):
+                    n.branches.append(Branch(self.pose[:2], (math.cos(b), math.sin(b)), None))
         if tang @ np.asarray(head) < 0:
             tang = -tang
         self.task['heading'] = tuple(tang)
@@ -131,6 +129,29 @@ class TraceGVD:
                 return self._end_branch('meet')
         corr = diff / np.linalg.norm(diff) * (d1 - d2) * 2.0
         return tang * self.cfg.max_speed + corr
+
+    def _start_openings(self, a):
+        """The GVD edges leaving the start other than the one it lies on (bearing ``a`` one
+        way, ``a + pi`` the other): the openings of this sweep beyond delta
+        (:meth:`_openings`), less that edge's own: an opening within 30 degrees of either
+        way, or within 60 degrees of ``a`` and seen through one gap with it (no cone between
+        them meets an obstacle within delta, :meth:`_one_opening`). Nothing was come along
+        at the start, so the way come's test at a meet point (any opening within 60 degrees
+        of it) does not apply: a stub 56 degrees off the start's edge, beyond a jamb 1.9 m
+        away, is a branch (gen_maze_1168)."""
+        found = gvdmod.range_peaks(self.angles, self.ranges, self.det,
+                                   self.cfg.event_tolerance)
+        _, ang, r, _ = found
+        sep = r <= self.det
+        out = []
+        for b in self._openings(self.angles, self.ranges, [], self.det, found=found):
+            off = abs(math.remainder(b - a, 2 * math.pi))
+            if min(off, math.pi - off) <= math.radians(30):
+                continue
+            if off < math.radians(60) and self._one_opening(sep, ang, b, a):
+                continue
+            out.append(b)
+        return out
 
     def _open_branches(self, n):
         """The untraced branches of narrow node ``n``. A branch whose GVD edge the robot has
