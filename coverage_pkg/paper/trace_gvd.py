@@ -274,9 +274,9 @@ class TraceGVD:
         joined has covered ``n`` as far as it went, so Algorithm 1 goes on with
         FindUncoveredNode, which chooses among all uncovered nodes, the merged one as one
         of them (with ``merge_continues``, the merged node goes on being covered at once,
-        however far its open branches lie: a robot that merges three corner cells of one
-        room into the start's corridor node, one after another, drove to the far ends of
-        the corridors between them, ``gen_mixed_9094``)."""
+        however far its open branches lie: where three corner cells of one room merge into
+        the start's corridor node one after another, the robot drives to the far ends of
+        the corridors after each, ``gen_mixed_9094``)."""
         if owner is None:
             return None
         m = self.nodes[self.same_node(owner)]
