@@ -14,13 +14,16 @@ are all recorded once matched (DDS retransmits), in one process and across proce
 *best-effort* publisher (sensor data) gets no retransmission: in one process nothing is lost
 (the data never leaves the participant), across processes a sample dropped by the transport
 (loopback socket or shared-memory segment full under load) is gone, as with ``ros2 bag
-record``. Samples published before the recorder matched a publisher are not recorded, unless
+record``; the recorder logs each such loss the middleware reports (its *message lost* event)
+with the topic and the running count (:attr:`BagRecorderNode.lost`), so it is never silent.
+Samples published before the recorder matched a publisher are not recorded, unless
 the publisher is transient-local (latched); free-running simulators hold time at zero until
 the recorder listens (``wait_for_clock_subscribers``/``wait_for_matched``).
 """
 from typing import Any
 
 from rclpy.clock import Clock, ClockType
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.qos import HistoryPolicy, QoSProfile
 
 from paramotion.bag.qos_yaml import adapted_subscription_qos
@@ -48,6 +51,8 @@ class BagRecorderNode(ParamotionNode):
         self.wanted = {t for t in self.params.topics if t}
         self.writer = BagWriter(self.params.output, flush_period=self.params.flush_period)
         self._subs = {}
+        #: Samples the middleware reports lost per topic (best-effort transport drops).
+        self.lost = {}
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._flush_timer = self.create_timer(
             self.params.flush_period, self.writer.maybe_flush, clock=steady)
@@ -93,7 +98,15 @@ class BagRecorderNode(ParamotionNode):
         qos.history = HistoryPolicy.KEEP_ALL   # never overwrite a sample not yet written
         self._subs[topic] = self.create_subscription(
             message_class(msgtype), topic, lambda data, t=topic: self._on_message(t, data),
-            qos, raw=True)
+            qos, raw=True, event_callbacks=SubscriptionEventCallbacks(
+                message_lost=lambda info, t=topic: self._on_lost(t, info)))
+
+    def _on_lost(self, topic, info):
+        """Log samples of ``topic`` that the transport dropped before they reached us."""
+        self.lost[topic] = info.total_count
+        self.get_logger().warning(
+            f'{topic}: {info.total_count_change} sample(s) lost in transport '
+            f'({info.total_count} so far); they are not in the bag')
 
     def _on_message(self, topic, data):
         self.writer.write(topic, self.get_clock().now().nanoseconds, data)
