@@ -117,6 +117,8 @@ class BagRecorderNode(ParamotionNode):
             self.destroy_subscription(sub)
         self._subs.clear()
         self.writer.close()
+        for topic, count in sorted(self.lost.items()):
+            self.get_logger().warning(f'{topic}: {count} sample(s) lost in transport in all')
         return super().destroy_node()
 
 
