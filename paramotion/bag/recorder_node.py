@@ -15,7 +15,9 @@ are all recorded once matched (DDS retransmits), in one process and across proce
 (the data never leaves the participant), across processes a sample dropped by the transport
 (loopback socket or shared-memory segment full under load) is gone, as with ``ros2 bag
 record``; the recorder logs each such loss the middleware reports (its *message lost* event)
-with the topic and the running count (:attr:`BagRecorderNode.lost`), so it is never silent.
+with the topic and the running count (:attr:`BagRecorderNode.lost`). The middleware finds a
+loss as a gap in a writer's sequence numbers, so a writer's very first sample, if dropped, goes
+unreported (nothing before it to tell), as do samples dropped after its last one received.
 Samples published before the recorder matched a publisher are not recorded, unless
 the publisher is transient-local (latched); free-running simulators hold time at zero until
 the recorder listens (``wait_for_clock_subscribers``/``wait_for_matched``).
