@@ -145,6 +145,9 @@ def test_samples_the_transport_drops_are_reported_lost(tmp_path):
     the transport's queue to it overflows and samples are dropped. Each one missing from the
     bag is in the recorder's loss report (the middleware's *message lost* event), so recorded
     plus reported equals published, and some were really dropped."""
+    from functools import partial
+
+    from rclpy.node import Node
     from rclpy.qos import qos_profile_sensor_data
     from sensor_msgs.msg import Range
 
@@ -157,7 +160,7 @@ def test_samples_the_transport_drops_are_reported_lost(tmp_path):
     sent = []
     try:
         with Graph(domain_id=int(os.environ['ROS_DOMAIN_ID'])) as graph:
-            node = graph.add(_Talker)
+            node = graph.add(partial(Node, 'loss_talker'))
             pub = node.create_publisher(Range, '/sonar/ranges', qos_profile_sensor_data)
 
             def burst(count, pause):
@@ -189,11 +192,3 @@ def test_samples_the_transport_drops_are_reported_lost(tmp_path):
     assert lost > 0
     assert len(got) + lost == len(sent), log.read_text()[-2000:]
     assert len(set(got)) == len(got) and set(got) <= set(sent)
-
-
-class _Talker:
-    """Node factory for :meth:`Graph.add`: a bare node that only publishes."""
-
-    def __new__(cls, *, context, parameter_overrides=(), **kwargs):
-        from rclpy.node import Node
-        return Node('loss_talker', context=context, **kwargs)
