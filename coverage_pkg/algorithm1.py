@@ -28,11 +28,14 @@ start on neither the GVD nor VR first moves off its single closest obstacle
 (:meth:`PaperPlanner._access`).
 
 ``without`` switches the sensing of one event kind off (``cusp``, ``critical``, ``meet``), so
-that the run shows what the paper predicts without it. Plain numpy; no ROS.
+that the run shows what the paper predicts without it. :func:`parse_modes` reads the
+selectable modes (``handover=false``: Algorithm 1's pseudocode order; ``rules=paper``: every
+sensing rule of ours set to the paper's reading, :data:`PAPER_RULES`). Plain numpy; no ROS.
 """
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Iterable
 from dataclasses import dataclass
 
@@ -48,8 +51,9 @@ from coverage_pkg.paper.sense_events import EventSensing
 from coverage_pkg.paper.trace_gvd import TraceGVD
 from paramotion.errors import UserError
 
-__all__ = ['EVENTS', 'TERMINAL', 'Branch', 'Command', 'MorseCell', 'Node', 'PaperConfig',
-           'PaperPlanner', 'TracedPaths', 'parse_without']
+__all__ = ['EVENTS', 'MODE_FIELDS', 'PAPER_RULES', 'TERMINAL', 'Branch', 'Command',
+           'MorseCell', 'Node', 'PaperConfig', 'PaperPlanner', 'TracedPaths', 'parse_modes',
+           'parse_without']
 
 EVENTS = ('cusp', 'critical', 'meet')
 TERMINAL = ('done', 'stuck', 'incomplete')
@@ -62,6 +66,69 @@ def parse_without(value: str | Iterable[str] | None) -> tuple[str, ...]:
     bad = [w for w in out if w not in EVENTS]
     if bad:
         raise UserError(f'without "{bad[0]}" must be one of {", ".join(EVENTS)}')
+    return out
+
+
+#: The :class:`PaperConfig` fields that select a mode of the paper planner (node parameter
+#: ``modes``, ``paramotion coverage --mode``); the other fields are its thresholds and limits.
+MODE_FIELDS = ('handover', 'merge_continues', 'circuit_sweeps', 'cusp_detour', 'circuit_join',
+               'meet_scan', 'end_scan', 'sliver_openings', 'cusp_meet', 'meet_margin',
+               'circuit_same_way', 'circuit_same_side', 'meet_side_pair', 'way_come_held',
+               'meet_own_obstacles', 'traced_way', 'meet_surround')
+
+#: ``rules=paper``: each sensing rule of ours that is on in the default, set to the paper's
+#: reading (the rules of ours that are off in the default are off here too). What remains is
+#: Algorithm 1 with the paper's own tests as literally as the ring allows: a meet point's
+#: branches from the one sweep that sensed it, every boundary circuit driven round to its
+#: start, a meet point only at D <= delta, a cusp only a cusp, and so on (docs/coverage.md,
+#: *Modes*).
+PAPER_RULES = {'meet_scan': False, 'sliver_openings': False, 'circuit_join': False,
+               'cusp_meet': False, 'meet_margin': 0.0, 'circuit_same_way': False,
+               'circuit_same_side': False, 'meet_side_pair': False, 'way_come_held': False,
+               'meet_own_obstacles': False}
+
+_TRUE, _FALSE = ('1', 'true', 'yes', 'on'), ('0', 'false', 'no', 'off')
+
+
+def parse_modes(value: str | Iterable[str] | None,
+                fields: Iterable[str] = MODE_FIELDS) -> dict[str, object]:
+    """:class:`PaperConfig` keyword arguments from ``NAME=VALUE`` items (a comma-separated
+    string or a list), each typed like the field's default. ``rules=paper`` stands for
+    :data:`PAPER_RULES` and ``rules=ours`` for the default's rules; later items override
+    earlier ones (``rules=paper,meet_scan=true``). ``fields``: the names accepted besides
+    ``rules``. UserError names the bad item in one line."""
+    items = value.split(',') if isinstance(value, str) else list(value or ())
+    base, allowed, out = PaperConfig(), tuple(fields), {}
+    for item in (i.strip() for i in items):
+        if not item:
+            continue
+        name, sep, text = (part.strip() for part in item.partition('='))
+        if not sep or not text:
+            raise UserError(f'mode "{item}" must be NAME=VALUE')
+        if name == 'rules':
+            if text not in ('paper', 'ours'):
+                raise UserError(f'mode "{item}": rules takes paper or ours')
+            for key in PAPER_RULES:
+                out[key] = PAPER_RULES[key] if text == 'paper' else getattr(base, key)
+            continue
+        if name not in allowed or not hasattr(base, name):
+            raise UserError(f'mode "{item}": {name} is not a mode of the paper planner '
+                            f'(rules, {", ".join(allowed)})')
+        kind = type(getattr(base, name))
+        if kind is bool:
+            if text.lower() not in _TRUE + _FALSE:
+                raise UserError(f'mode "{item}": {name} takes true or false')
+            out[name] = text.lower() in _TRUE
+        elif kind is tuple:
+            out[name] = tuple(v for v in re.split('[,;]', text) if v)
+        else:
+            try:
+                number = kind(text)
+            except ValueError:
+                raise UserError(f'mode "{item}": {name} takes a {kind.__name__}') from None
+            if isinstance(number, float) and not (math.isfinite(number) and number >= 0):
+                raise UserError(f'mode "{item}": {name} must be finite and >= 0')
+            out[name] = number
     return out
 
 

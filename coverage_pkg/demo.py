@@ -21,7 +21,7 @@ import threading
 import time
 from pathlib import Path
 
-from coverage_pkg.algorithm1 import parse_without, primitive_lengths
+from coverage_pkg.algorithm1 import parse_modes, parse_without, primitive_lengths
 from coverage_pkg.scenario import add_planner_args
 from paramotion.errors import UserError
 from paramotion.scenario_io import add_output_args, output_dir, write_json
@@ -131,9 +131,10 @@ def demo_world():
 
 
 def run_demo(out, rtf=2.0, max_wall=240.0, world=None, overwrite=False, echo=print,
-             planner=None, without=()):
+             planner=None, without=(), modes=()):
     """Launch, watch, stop, evaluate from the bag; returns the result dict. ``planner``
-    (default: the launch file's) and ``without`` become the launch arguments."""
+    (default: the launch file's), ``without`` and ``modes`` (the paper planner's
+    ``NAME=VALUE`` modes) become the launch arguments."""
     from coverage_pkg.scenario import _shift_events, _shift_graph
     from coverage_pkg.world import load_world
     from paramotion import launch_xml
@@ -147,6 +148,9 @@ def run_demo(out, rtf=2.0, max_wall=240.0, world=None, overwrite=False, echo=pri
             args['planner'] = planner
         if without:
             args['without'] = ','.join(parse_without(without))
+        modes = [modes] if isinstance(modes, str) else list(modes or ())
+        if modes:
+            args['modes'] = ','.join(modes)
         desc = launch_xml.load('coverage', args)
         sim = desc.node('coverage_sim').params
         world_path, radius = sim['world'], float(sim['radius'])
@@ -182,7 +186,7 @@ def run_demo(out, rtf=2.0, max_wall=240.0, world=None, overwrite=False, echo=pri
             'mode': 'processes (paramotion launch coverage)',
             'world': world_path, 'world_name': world_obj.name, 'radius_m': radius,
             'detector_range_m': delta, 'real_time_factor': rtf, 'planner': planner_name,
-            'without': list(parse_without(without)),
+            'without': list(parse_without(without)), 'modes': parse_modes(modes),
             'outcome': 'complete' if state == 'done' else (
                 state if state in END_STATES else 'stopped_at_wall_limit'),
             'planner_state': state, 'planner_message': seen['message'],
@@ -226,8 +230,14 @@ def _run(args):
         raise UserError(f'--world {args.world}: no such file')
     if args.without and args.planner != 'paper':
         raise UserError('--without: applies to --planner paper only')
+    if args.mode and args.planner != 'paper':
+        raise UserError('--mode: applies to --planner paper only')
+    try:
+        parse_modes(args.mode)
+    except UserError as exc:
+        raise UserError(f'--mode: {exc}') from None
     r = run_demo(args.out, args.rtf, args.max_wall, args.world, args.overwrite,
-                 planner=args.planner, without=args.without)
+                 planner=args.planner, without=args.without, modes=args.mode)
     out = Path(args.out)
     print(f"coverage {r['world_name']} ({r['planner']} planner, one process per node): "
           f"{r['outcome']} after "

@@ -14,6 +14,7 @@ each run.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 import tempfile
 import time
@@ -22,7 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-from coverage_pkg.algorithm1 import PaperConfig
+from coverage_pkg.algorithm1 import PaperConfig, parse_modes
+from paramotion.errors import UserError
 
 PRIMITIVES = ('lap', 'boundary', 'gvd', 'transit')
 
@@ -37,21 +39,13 @@ def parse_seeds(text: str) -> list[int]:
 
 
 def parse_config(items: list[str]) -> dict[str, object]:
-    """PaperConfig fields from 'name=value' strings (typed like the field's default)."""
-    base, out = PaperConfig(), {}
-    for item in items:
-        name, sep, value = item.partition('=')
-        if not sep or not hasattr(base, name):
-            raise SystemExit(f'--set "{item}" must be NAME=VALUE with a PaperConfig field NAME')
-        kind = type(getattr(base, name))
-        if kind is bool:
-            if value.lower() not in ('1', 'true', 'yes', '0', 'false', 'no'):
-                raise SystemExit(f'--set "{item}": {name} takes true or false')
-            out[name] = value.lower() in ('1', 'true', 'yes')
-        else:
-            out[name] = tuple(v for v in value.split(',') if v) if kind is tuple else \
-                kind(value)
-    return out
+    """PaperConfig fields from 'name=value' strings (typed like the field's default; any
+    field, the thresholds too; ``rules=paper`` as in
+    :func:`coverage_pkg.algorithm1.parse_modes`)."""
+    try:
+        return parse_modes(items, fields=[f.name for f in dataclasses.fields(PaperConfig)])
+    except UserError as exc:
+        raise SystemExit(f'--set: {exc}') from None
 
 
 def measure_world(seed: int | str, png_dir: str | None = None, max_time: float = 3000.0,
@@ -97,12 +91,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument('--png', default=None, help='directory for one picture per world')
     ap.add_argument('--max-sim-time', type=float, default=3000.0)
     ap.add_argument('--set', action='append', default=[], metavar='NAME=VALUE',
-                    help="a PaperConfig field, e.g. 'circuit_sweeps=true' (repeatable)")
+                    help="a PaperConfig field, e.g. 'circuit_sweeps=true', or 'rules=paper' "
+                    '(repeatable; later ones override earlier ones)')
     args = ap.parse_args(argv)
     config = parse_config(args.set)
     if args.world:
         from coverage_pkg.world import load_world
-        from paramotion.errors import UserError
         try:
             for path in args.world:
                 load_world(path)          # a bad file: one line, before any run

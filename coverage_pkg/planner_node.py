@@ -2,7 +2,8 @@
 
 A thin adapter (all the math is in the planners): ``planner:=paper`` (the default) runs
 Algorithm 1 of Acar, Choset and Lee driven by sensed events alone
-(:class:`coverage_pkg.algorithm1.PaperPlanner`, ablations with ``without``);
+(:class:`coverage_pkg.algorithm1.PaperPlanner`, ablations with ``without``, modes with
+``modes``, e.g. ``rules=paper`` or ``handover=false``);
 ``planner:=grid`` the frontier-driven evidence-grid planner (ours, not the paper's,
 :class:`coverage_pkg.planner.CoveragePlanner`).
 Inputs, and nothing else (never the world file, never ground truth):
@@ -40,7 +41,7 @@ from sensor_msgs.msg import LaserScan
 from std_msgs.msg import ColorRGBA, String
 from visualization_msgs.msg import Marker, MarkerArray
 
-from coverage_pkg.algorithm1 import PaperConfig, PaperPlanner, parse_without
+from coverage_pkg.algorithm1 import PaperConfig, PaperPlanner, parse_modes, parse_without
 from coverage_pkg.baseline import robot_size_config
 from coverage_pkg.morse import cell_boundaries
 from coverage_pkg.planner import PlannerConfig, PlannerDriver, graph_dict
@@ -70,6 +71,11 @@ class CoveragePlannerNode(ParamotionNode):
               read_only=True),
         Param('without', '', 'Comma-separated events whose sensing is switched off in the '
               'paper planner: cusp, critical, meet (ablations).', read_only=True),
+        Param('modes', '', "Comma-separated NAME=VALUE modes of the paper planner "
+              "(coverage_pkg/algorithm1.py: MODE_FIELDS), later ones overriding earlier ones: "
+              "'rules=paper' sets every sensing rule of ours to the paper's reading, "
+              "'handover=false' is Algorithm 1's pseudocode order, e.g. "
+              "'rules=paper,handover=false'.", read_only=True),
         Param('beam_width', 0.2, 'Cone angle of one transducer (rad); the same as the sonar '
               "ring's field_of_view (LaserScan does not carry it).", min=0.01, max=1.5,
               read_only=True),
@@ -120,7 +126,8 @@ class CoveragePlannerNode(ParamotionNode):
             common['replan_period'] = p.replan_period
         if p.planner == 'paper':
             self.config = PaperConfig(
-                delta=p.delta, radius=p.radius, without=parse_without(p.without), **common)
+                delta=p.delta, radius=p.radius, without=parse_without(p.without),
+                **parse_modes(p.modes), **common)
         elif p.detector == 'robot':
             self.config = robot_size_config(p.radius, **common)
         else:
@@ -153,6 +160,12 @@ class CoveragePlannerNode(ParamotionNode):
             return f"parameter 'without': {exc}"
         if without and values['planner'] != 'paper':
             return "parameter 'without' applies to planner 'paper' only"
+        try:
+            modes = parse_modes(values['modes'])
+        except UserError as exc:
+            return f"parameter 'modes': {exc}"
+        if modes and values['planner'] != 'paper':
+            return "parameter 'modes' applies to planner 'paper' only"
         if values['planner'] == 'paper' and values['detector'] != 'extended':
             return "parameter 'detector' = 'robot' needs planner 'grid'"
         if values['detector'] == 'extended' and not values['delta'] > values['radius']:

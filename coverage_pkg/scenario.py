@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from coverage_pkg.algorithm1 import EVENTS, PaperConfig, parse_without
+from coverage_pkg.algorithm1 import EVENTS, MODE_FIELDS, PaperConfig, parse_modes, parse_without
 from coverage_pkg.planner import PlannerConfig, graph_dict
 from coverage_pkg.sonar import SonarRing
 from coverage_pkg.world import load_world
@@ -38,12 +38,18 @@ DEFAULT_PLANNER = 'paper'
 
 
 def validate_inputs(world_path, delta, radius, detector, sonar_max_range, max_sim_time=1.0,
-                    planner=DEFAULT_PLANNER, without=()):
+                    planner=DEFAULT_PLANNER, without=(), modes=()):
     """Check every input before anything runs; raise UserError with one line if bad."""
     if planner not in PLANNERS:
         raise UserError(f'--planner {planner}: must be one of {", ".join(PLANNERS)}')
     if without and planner != 'paper':
         raise UserError('--without: applies to --planner paper only')
+    if modes and planner != 'paper':
+        raise UserError('--mode: applies to --planner paper only')
+    try:
+        parse_modes(modes)
+    except UserError as exc:
+        raise UserError(f'--mode: {exc}') from None
     if planner == 'paper' and detector != 'extended':
         raise UserError('--detector robot: needs --planner grid')
     parse_without(without)
@@ -60,20 +66,28 @@ def validate_inputs(world_path, delta, radius, detector, sonar_max_range, max_si
     return load_world(world_path, radius=radius)
 
 
+def _modes_of(config):
+    """The mode fields of a :class:`PaperConfig` that differ from the default's."""
+    base = PaperConfig()
+    return {k: getattr(config, k) for k in MODE_FIELDS if getattr(config, k) != getattr(base, k)}
+
+
 def run_coverage(world_path, delta=2.0, radius=0.25, detector='extended', bag_dir=None,
                  max_sim_time=3000.0, sonar_max_range=5.0, seed=1, sonar_params=None,
                  planner_params=None, topics=None, domain_id=None, planner=DEFAULT_PLANNER,
-                 without=()):
+                 without=(), modes=()):
     """Run the coverage graph lock-step and return the result dict (see ``_run``).
 
     ``bag_dir`` records ``topics`` (default :data:`TOPICS`); extra node parameters go in
-    ``sonar_params`` / ``planner_params``.
+    ``sonar_params`` / ``planner_params``; ``modes``: the paper planner's ``NAME=VALUE``
+    modes (:func:`coverage_pkg.algorithm1.parse_modes`).
     """
     from paramotion.graph import Graph
     from paramotion.launch import graph_from_launch
 
+    modes = [modes] if isinstance(modes, str) else list(modes or ())
     world = validate_inputs(world_path, delta, radius, detector, sonar_max_range, max_sim_time,
-                            planner, without)
+                            planner, without, modes)
     planner_name = planner
     det_range = radius if detector == 'robot' else delta
     wall0 = time.monotonic()
@@ -83,7 +97,8 @@ def run_coverage(world_path, delta=2.0, radius=0.25, detector='extended', bag_di
                                  'delta': float(delta), 'detector': detector,
                                  'sonar_max_range': float(sonar_max_range), 'seed': int(seed),
                                  'planner': planner_name,
-                                 'without': ','.join(parse_without(without))},
+                                 'without': ','.join(parse_without(without)),
+                                 'modes': ','.join(modes)},
             extra_params={'coverage_sonar': sonar_params, 'coverage_planner': planner_params})
         sim, planner, monitor = (nodes[n] for n in ('coverage_sim', 'coverage_planner',
                                                     'coverage_monitor'))
@@ -127,6 +142,8 @@ def run_coverage(world_path, delta=2.0, radius=0.25, detector='extended', bag_di
                                   'p99': float(np.percentile(ut, 99)) if len(ut) else None,
                                   'sweeps': int(len(ut))},
             'planner': planner_name, 'without': list(parse_without(without)),
+            # The modes the planner node ran with (its PaperConfig against the default's).
+            'modes': _modes_of(planner.config) if planner_name == 'paper' else {},
             'hierarchical_graph': graph,
             'decisions': [list(d) for d in (p.decisions if p is not None else [])],
             # Every event (sensed: critical, cusp, meet; cell_closed, node_created, ...):
@@ -182,14 +199,14 @@ def _shift_graph(g, dx, dy):
 
 def _run(args):
     validate_inputs(args.world, args.delta, args.radius, args.detector, args.sonar_max_range,
-                    args.max_sim_time, args.planner, args.without)
+                    args.max_sim_time, args.planner, args.without, args.mode)
     with output_dir(args.out, args.overwrite) as tmp:
         topics = [t for t in (args.record_topics or '').split(',') if t] or None
         result = run_coverage(args.world, args.delta, args.radius, args.detector,
                               bag_dir=tmp / 'bag', max_sim_time=args.max_sim_time,
                               sonar_max_range=args.sonar_max_range, seed=args.seed,
                               topics=topics, domain_id=args.domain_id, planner=args.planner,
-                              without=args.without)
+                              without=args.without, modes=args.mode)
         layers = result.pop('_layers')
         uncovered = result.pop('_uncovered')
         write_json(tmp / 'result.json', result)
@@ -205,6 +222,7 @@ def _run(args):
                         result['hierarchical_graph'], layers, uncovered, title)
     print(f"coverage {result['world_name']} ({args.planner} planner, {args.detector} detector"
           + (f", without {','.join(args.without)}" if args.without else '')
+          + (f", modes {','.join(args.mode)}" if args.mode else '')
           + f"): {result['outcome']} "
           f"after {result['sim_time_s']:.1f} s sim time in {result['wall_time_s']:.1f} s wall")
     print(f"covered {100 * result['covered_fraction_of_cvs']:.2f}% of CVS "
@@ -218,12 +236,12 @@ def _run(args):
 
 def _bench(args):
     validate_inputs(args.world, args.delta, args.radius, args.detector, args.sonar_max_range,
-                    args.max_sim_time, args.planner, args.without)
+                    args.max_sim_time, args.planner, args.without, args.mode)
     result = run_coverage(args.world, args.delta, args.radius, args.detector, bag_dir=None,
                           max_sim_time=args.max_sim_time,
                           sonar_max_range=args.sonar_max_range, seed=args.seed,
                           domain_id=args.domain_id, planner=args.planner,
-                          without=args.without)
+                          without=args.without, modes=args.mode)
     u = result['planner_update_ms']
     print(f"coverage benchmark {result['world_name']} ({args.detector} detector), "
           f"{result['outcome']}")
@@ -255,7 +273,8 @@ def _common(parser):
 
 
 def add_planner_args(parser):
-    """``--planner`` and the repeatable ``--without EVENT`` (paper planner ablations)."""
+    """``--planner``, the repeatable ``--without EVENT`` (paper planner ablations) and
+    ``--mode NAME=VALUE`` (paper planner modes)."""
     parser.add_argument('--planner', choices=PLANNERS, default=DEFAULT_PLANNER,
                         help='paper: Algorithm 1 driven by sensed events alone '
                         '(coverage_pkg/algorithm1.py); grid: the frontier-driven evidence-grid '
@@ -263,6 +282,11 @@ def add_planner_args(parser):
     parser.add_argument('--without', action='append', choices=EVENTS, default=[],
                         help='switch the sensing of this event off in the paper planner '
                         '(repeatable)')
+    parser.add_argument('--mode', action='append', default=[], metavar='NAME=VALUE',
+                        help="a mode of the paper planner (repeatable, later ones override "
+                        "earlier ones): 'rules=paper' sets every sensing rule of ours to the "
+                        "paper's reading, 'handover=false' is Algorithm 1's pseudocode order; "
+                        'the names: coverage_pkg/algorithm1.py MODE_FIELDS')
 
 
 def register(subparsers):
@@ -318,9 +342,10 @@ def _ratio(args):
     paths = sorted(Path(args.worlds).glob('*.json'))
     if not paths:
         raise UserError(f'--worlds {args.worlds}: no .json world files there')
-    validate_inputs(paths[0], 2.0, 0.25, 'extended', 5.0, 1.0, args.planner, args.without)
-    config = PaperConfig(without=parse_without(args.without)) if args.planner == 'paper' \
-        else None
+    validate_inputs(paths[0], 2.0, 0.25, 'extended', 5.0, 1.0, args.planner, args.without,
+                    args.mode)
+    config = PaperConfig(without=parse_without(args.without), **parse_modes(args.mode)) \
+        if args.planner == 'paper' else None
     ratio_report(paths, config, baseline=args.baseline, oracle=args.oracle,
                  max_time=args.max_sim_time, events=args.events)
     return 0

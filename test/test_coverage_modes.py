@@ -1,0 +1,110 @@
+"""The paper planner's selectable modes end to end: ``rules=paper`` (every sensing rule of ours
+set to the paper's reading) and single switches, from the command line, the launch argument
+and the node parameter ``modes`` down to the PaperConfig the planner runs with."""
+import json
+from pathlib import Path
+
+import pytest
+
+from coverage_pkg.algorithm1 import MODE_FIELDS, PAPER_RULES, PaperConfig, parse_modes
+from paramotion.cli import main as cli_main
+from paramotion.errors import ParameterError, UserError
+
+WORLDS = Path(__file__).resolve().parents[1] / 'coverage_pkg' / 'worlds'
+DOOR_ROOMS = str(WORLDS / 'door_rooms.json')
+
+
+def test_paper_rules_set_every_rule_of_ours_the_default_has_on():
+    """rules=paper changes each switch of ours that is on in the default (docs: the rules of
+    ours, on) and nothing else; every switch it sets is a mode field."""
+    base = PaperConfig()
+    assert set(PAPER_RULES) <= set(MODE_FIELDS)
+    assert all(getattr(base, k) != v for k, v in PAPER_RULES.items())
+    ours_on = {'meet_scan', 'sliver_openings', 'circuit_join', 'cusp_meet', 'meet_margin',
+               'circuit_same_way', 'circuit_same_side', 'meet_side_pair', 'way_come_held',
+               'meet_own_obstacles'}
+    assert set(PAPER_RULES) == ours_on
+
+
+def test_later_modes_override_earlier_ones():
+    assert parse_modes('rules=paper,meet_scan=true') == {**PAPER_RULES, 'meet_scan': True}
+    assert parse_modes(['meet_scan=false', 'rules=ours']) == {
+        k: getattr(PaperConfig(), k) for k in PAPER_RULES}
+    assert parse_modes(['handover=false', 'meet_margin=0.05']) == {
+        'handover': False, 'meet_margin': 0.05}
+    assert parse_modes('') == {}
+
+
+@pytest.mark.parametrize('text, words', [
+    ('handover', 'mode "handover" must be NAME=VALUE'),
+    ('rules=strict', 'rules takes paper or ours'),
+    ('view_margin=0.1', 'view_margin is not a mode of the paper planner'),
+    ('meet_scan=maybe', 'meet_scan takes true or false'),
+    ('meet_margin=-0.1', 'meet_margin must be finite and >= 0'),
+    ('meet_margin=nan', 'meet_margin must be finite and >= 0'),
+])
+def test_a_bad_mode_is_named_in_one_line(text, words):
+    with pytest.raises(UserError, match=words) as info:
+        parse_modes(text)
+    assert '\n' not in str(info.value)
+
+
+def test_the_launch_argument_reaches_the_planner_node():
+    from paramotion import launch_xml
+    desc = launch_xml.load('coverage', {'modes': 'rules=paper,handover=false'})
+    assert desc.node('coverage_planner').params['modes'] == 'rules=paper,handover=false'
+    assert launch_xml.load('coverage').node('coverage_planner').params['modes'] == ''
+
+
+def test_the_planner_node_runs_the_modes_it_is_given():
+    from coverage_pkg.planner_node import CoveragePlannerNode
+    from paramotion.graph import Graph
+    with Graph() as graph:
+        node = graph.add(CoveragePlannerNode, modes='rules=paper,handover=false')
+        cfg = node.config
+        assert {k: getattr(cfg, k) for k in PAPER_RULES} == PAPER_RULES
+        assert cfg.handover is False
+        default = graph.add(CoveragePlannerNode, name='coverage_planner_default')
+        assert default.config == PaperConfig()
+
+
+@pytest.mark.parametrize('params, words', [
+    ({'modes': 'meet_scan=maybe'}, "parameter 'modes': mode \"meet_scan=maybe\": meet_scan "
+     'takes true or false'),
+    ({'modes': 'delta=3'}, "parameter 'modes': .*delta is not a mode"),
+    ({'planner': 'grid', 'modes': 'rules=paper'}, "'modes' applies to planner 'paper' only"),
+])
+def test_the_planner_node_refuses_a_bad_mode(params, words):
+    from coverage_pkg.planner_node import CoveragePlannerNode
+    from paramotion.graph import Graph
+    with Graph() as graph:
+        with pytest.raises(ParameterError, match=words):
+            graph.add(CoveragePlannerNode, **params)
+
+
+@pytest.mark.parametrize('extra, words', [
+    (['--mode', 'bogus=1'], '--mode: mode "bogus=1": bogus is not a mode'),
+    (['--planner', 'grid', '--mode', 'rules=paper'], '--mode: applies to --planner paper only'),
+])
+def test_a_bad_mode_on_the_command_line_stops_before_anything_runs(tmp_path, capsys, extra,
+                                                                   words):
+    out = tmp_path / 'out'
+    code = cli_main(['coverage', '--world', DOOR_ROOMS, '--out', str(out)] + extra)
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and words in err and len(err.splitlines()) == 1
+    assert not out.exists()
+
+
+def test_the_papers_rules_alone_cover_two_rooms_and_a_corridor_in_the_ros_graph(tmp_path):
+    """Closed loop, the ROS graph: with every rule of ours off the planner still senses the
+    corridor's cusps and the rooms' events and covers the world (99.97 % here); the result
+    records the modes the planner node ran with, read from its configuration."""
+    out = tmp_path / 'out'
+    code = cli_main(['coverage', '--world', DOOR_ROOMS, '--mode', 'rules=paper', '--out',
+                     str(out)])
+    r = json.loads((out / 'result.json').read_text())
+    assert r['modes'] == PAPER_RULES
+    assert code == 0 and r['outcome'] == 'complete'
+    assert r['covered_fraction_of_cvs'] >= 0.99
+    kinds = [e[1] for e in r['events']]
+    assert kinds.count('node_created') >= 2 and 'cusp' in kinds
