@@ -13,6 +13,8 @@ Gaussian noise, ``+inf`` with no echo (past the top of the structure or beyond m
 with probability ``dropout_probability``.
 """
 
+import sys
+
 import numpy as np
 from geometry_msgs.msg import PoseArray
 from sensor_msgs.msg import Range
@@ -61,6 +63,7 @@ class ClimberUltrasonicNode(ParamotionNode):
         self.origins, self.dirs = self.robot.sensor_rays()
         self.pose = None
         self._cache = (None, None)
+        self._warm_up()
         self.create_subscription(PoseArray, '/climber/ground_truth', self._on_truth, SENSOR_QOS)
         self.pub = self.create_publisher(Range, f'/climber/ring{p.ring}/ultrasonic', SENSOR_QOS)
         self.create_timer(1.0 / p.rate, self._measure)
@@ -72,6 +75,27 @@ class ClimberUltrasonicNode(ParamotionNode):
         q = pose.orientation
         self.pose = (np.array([pose.position.x, pose.position.y, pose.position.z]),
                      matrix_from_quat([q.x, q.y, q.z, q.w]))
+
+    def _warm_up(self):
+        """Cast the beams once from the structure's base, before the node spins: the first
+        cast compiles the ray-casting kernels (or loads them from numba's disk cache). Inside a
+        callback that compile takes seconds on a loaded machine, and a Ctrl-C then waits for
+        the callback to end, long enough for launch to escalate to SIGTERM and SIGKILL; here a
+        Ctrl-C stops it, or, landing in one of LLVM's callbacks into Python (which drop the
+        exception), is taken up by the node's spin, which ends at once. Such a dropped
+        KeyboardInterrupt is not printed as an error."""
+        previous = sys.unraisablehook
+
+        def quiet(unraisable):
+            if not isinstance(unraisable.exc_value, KeyboardInterrupt):
+                previous(unraisable)
+        sys.unraisablehook = quiet
+        try:
+            base = np.asarray(self.trunk.points[0], dtype=float)
+            cone_distances(self.trunk, base + self.origins, self.dirs, self.robot.sensor_fov,
+                           self.robot.sensor_max_range)
+        finally:
+            sys.unraisablehook = previous
 
     def true_distances(self):
         """Noise-free nearest echo in each sensor's cone for the current ring pose (m or inf)."""
