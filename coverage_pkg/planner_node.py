@@ -138,6 +138,15 @@ class CoveragePlannerNode(ParamotionNode):
                 view_margin=p.view_margin, leave_far=p.leave_far, leave_near=p.leave_near,
                 **common)
         self.driver = PlannerDriver(self.config, p.beam_width)
+        if p.planner == 'paper':
+            modes = parse_modes(p.modes)
+            self.get_logger().info(
+                'coverage planner: paper (Algorithm 1)'
+                + (f", without {','.join(self.config.without)}" if self.config.without else '')
+                + (', modes ' + ','.join(f'{k}={v}' for k, v in modes.items()) if modes
+                   else ''))
+        else:
+            self.get_logger().info(f'coverage planner: {p.planner} (ours, frontier-driven)')
         self.cmd_pub = self.create_publisher(Twist, 'cmd_vel', STATE_QOS)
         self.status_pub = self.create_publisher(DiagnosticArray, '/coverage/status',
                                                 LATCHED_QOS)

@@ -60,17 +60,21 @@ def test_every_launch_file_is_installed(workspace):
 
 @needs_ros2_launch
 def test_coverage_graph_records_and_stops_cleanly_on_terminal_ctrl_c(workspace, tmp_path):
-    """Coverage rises over DDS; the recorder's bag is complete after the Ctrl-C."""
+    """Coverage rises over DDS; the recorder's bag is complete after the Ctrl-C. The
+    ``modes`` argument (a mode set to its default value, so the run is the default's) reaches
+    the planner node as a string, comma and all."""
     from rosbags.highlevel import AnyReader
 
     from paramotion.bag.reader import bag_info
     bag = tmp_path / 'bag'
     cmd = ros2_launch(workspace, 'coverage', 'real_time_factor:=4.0', 'record:=true',
-                      f'bag:={bag}')
+                      f'bag:={bag}', 'modes:=meet_scan=true,handover=true')
     with launched([], tmp_path, cmd=cmd) as (launch, w):
         check_coverage_rises(w, launch)
         out = check_clean_stop(launch)
     assert out.count('process has finished cleanly') == 5, out[-3000:]
+    assert 'coverage planner: paper (Algorithm 1), modes meet_scan=True,handover=True' in out, \
+        out[:3000]
     info = bag_info(bag)
     assert info.complete, info.problem
     assert info.topics['/coverage/ground_truth'].count > 20
