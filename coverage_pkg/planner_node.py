@@ -163,18 +163,13 @@ class CoveragePlannerNode(ParamotionNode):
         self.update_times = []          # wall seconds per processed sweep (benchmark)
 
     def check_params(self, values):
-        try:
-            without = parse_without(values['without'])
-        except UserError as exc:
-            return f"parameter 'without': {exc}"
-        if without and values['planner'] != 'paper':
-            return "parameter 'without' applies to planner 'paper' only"
-        try:
-            modes = parse_modes(values['modes'])
-        except UserError as exc:
-            return f"parameter 'modes': {exc}"
-        if modes and values['planner'] != 'paper':
-            return "parameter 'modes' applies to planner 'paper' only"
+        for name, parse in (('without', parse_without), ('modes', parse_modes)):
+            try:
+                chosen = parse(values[name])
+            except UserError as exc:
+                return f"parameter '{name}': {exc}"
+            if chosen and values['planner'] != 'paper':
+                return f"parameter '{name}' applies to planner 'paper' only"
         if values['planner'] == 'paper' and values['detector'] != 'extended':
             return "parameter 'detector' = 'robot' needs planner 'grid'"
         if values['detector'] == 'extended' and not values['delta'] > values['radius']:
