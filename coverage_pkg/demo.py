@@ -22,7 +22,7 @@ import time
 from pathlib import Path
 
 from coverage_pkg.algorithm1 import parse_modes, parse_without, primitive_lengths
-from coverage_pkg.scenario import add_planner_args
+from coverage_pkg.scenario import add_planner_args, check_paper_options
 from paramotion.errors import UserError
 from paramotion.scenario_io import add_output_args, output_dir, write_json
 
@@ -228,14 +228,7 @@ def _run(args):
         raise UserError(f'--max-wall {args.max_wall}: must be a positive number of seconds')
     if args.world and not os.path.isfile(args.world):
         raise UserError(f'--world {args.world}: no such file')
-    if args.without and args.planner != 'paper':
-        raise UserError('--without: applies to --planner paper only')
-    if args.mode and args.planner != 'paper':
-        raise UserError('--mode: applies to --planner paper only')
-    try:
-        parse_modes(args.mode)
-    except UserError as exc:
-        raise UserError(f'--mode: {exc}') from None
+    check_paper_options(args.planner, args.without, args.mode)
     r = run_demo(args.out, args.rtf, args.max_wall, args.world, args.overwrite,
                  planner=args.planner, without=args.without, modes=args.mode)
     out = Path(args.out)

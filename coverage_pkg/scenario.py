@@ -37,22 +37,28 @@ PLANNERS = ('paper', 'grid')
 DEFAULT_PLANNER = 'paper'
 
 
+def check_paper_options(planner, without=(), modes=()):
+    """``--without`` and ``--mode`` apply to the paper planner only, and must parse; raise
+    UserError with one line if not."""
+    if without and planner != 'paper':
+        raise UserError('--without: applies to --planner paper only')
+    if modes and planner != 'paper':
+        raise UserError('--mode: applies to --planner paper only')
+    parse_without(without)
+    try:
+        parse_modes(modes)
+    except UserError as exc:
+        raise UserError(f'--mode: {exc}') from None
+
+
 def validate_inputs(world_path, delta, radius, detector, sonar_max_range, max_sim_time=1.0,
                     planner=DEFAULT_PLANNER, without=(), modes=()):
     """Check every input before anything runs; raise UserError with one line if bad."""
     if planner not in PLANNERS:
         raise UserError(f'--planner {planner}: must be one of {", ".join(PLANNERS)}')
-    if without and planner != 'paper':
-        raise UserError('--without: applies to --planner paper only')
-    if modes and planner != 'paper':
-        raise UserError('--mode: applies to --planner paper only')
-    try:
-        parse_modes(modes)
-    except UserError as exc:
-        raise UserError(f'--mode: {exc}') from None
+    check_paper_options(planner, without, modes)
     if planner == 'paper' and detector != 'extended':
         raise UserError('--detector robot: needs --planner grid')
-    parse_without(without)
     for name, v in (('--delta', delta), ('--radius', radius), ('--sonar-max-range',
                                                                sonar_max_range),
                     ('--max-sim-time', max_sim_time)):
