@@ -104,14 +104,16 @@ def run_kinematic(world: World, config: PaperConfig | PlannerConfig | None = Non
 
 def ratio_report(paths: Iterable[str | Path], config: PaperConfig | PlannerConfig | None = None,
                  baseline: bool = False, oracle: bool = False, max_time: float = 3000.0,
-                 out: Callable[[str], object] = print,
-                 events: bool = False) -> list[dict[str, object]]:
+                 out: Callable[[str], object] = print, events: bool = False,
+                 floor: bool = False) -> list[dict[str, object]]:
     """Cover every world file in ``paths`` in the ROS-free loop and print, per world, the
     covered fraction of CVS, the path, the lower bound |CVS|/(2 delta) and their ratio (and,
     with ``baseline``, the robot-size baseline's path and the extended/baseline ratio; with
     ``oracle``, the full-knowledge route of :mod:`coverage_pkg.oracle` and planner/oracle;
     with ``events``, how many sensed cusp and meet points :mod:`coverage_pkg.event_check`
-    finds where the true world has them); then the mean and median ratio. Returns the rows."""
+    finds where the true world has them; with ``floor``, the floor of Algorithm 1's path of
+    :mod:`coverage_pkg.algorithm1_floor` and planner/floor); then the mean and median ratio.
+    Returns the rows."""
     from coverage_pkg.baseline import robot_size_config
     from coverage_pkg.world import load_world
     rows = []
@@ -139,6 +141,14 @@ def ratio_report(paths: Iterable[str | Path], config: PaperConfig | PlannerConfi
             line += (f"; oracle {o['path_length']:.1f} m ({100 * o['covered_fraction']:.2f} %), "
                      f"ratio {o['path_length'] / r['lower_bound']:.2f}, planner/oracle "
                      f"{r['path_length'] / o['path_length']:.2f}")
+        if floor:
+            from coverage_pkg.algorithm1_floor import algorithm1_floor
+            cfg = config if isinstance(config, PaperConfig) else PaperConfig()
+            f = algorithm1_floor(world, cfg.radius, cfg.detector_range(), cfg.view_margin)
+            row.update(floor_m=f['floor'])
+            line += (f"; floor of Algorithm 1 {f['floor']:.1f} m, ratio "
+                     f"{f['floor'] / r['lower_bound']:.2f}, planner/floor "
+                     f"{r['path_length'] / f['floor']:.2f}")
         if events:
             from coverage_pkg.event_check import check_events
             cfg = config or PlannerConfig()
@@ -157,6 +167,10 @@ def ratio_report(paths: Iterable[str | Path], config: PaperConfig | PlannerConfi
                 ok, n = (sum(r[key][i] for r in rows) for i in (0, 1))
                 out(f'{kind} points: {ok} of {n} sensed are where the true world has one '
                     f'({100 * ok / n if n else 0:.0f} %)')
+        if floor:
+            out(f"floor of Algorithm 1 (full knowledge): mean ratio "
+                f"{np.mean([r['floor_m'] / r['bound_m'] for r in rows]):.2f}; planner/floor "
+                f"mean {np.mean([r['path_m'] / r['floor_m'] for r in rows]):.2f}")
         if oracle:
             o = [r['oracle_m'] / r['bound_m'] for r in rows]
             out(f'oracle (full knowledge): mean ratio {np.mean(o):.2f}, median '

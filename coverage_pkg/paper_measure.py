@@ -9,7 +9,9 @@ share of the path driven by lap, boundary and GVD primitives (not transit), each
 path as a multiple of the lower bound (where the path goes), and the planner
 update time per sweep (median and 99th percentile of the CPU time of the planner's thread,
 ``time.thread_time``, so that other jobs on a shared machine do not count). ``--png`` draws
-each run.
+each run; ``--floor`` adds the floor of Algorithm 1's path on the true world
+(:mod:`coverage_pkg.algorithm1_floor`) and path / floor: how far the planner is from what the
+method needs.
 """
 from __future__ import annotations
 
@@ -49,9 +51,11 @@ def parse_config(items: list[str]) -> dict[str, object]:
 
 
 def measure_world(seed: int | str, png_dir: str | None = None, max_time: float = 3000.0,
-                  config: dict[str, object] | None = None) -> dict[str, object]:
+                  config: dict[str, object] | None = None,
+                  floor: bool = False) -> dict[str, object]:
     """One world covered by the paper planner; the measured figures. ``seed``: the
-    generator's seed (int) or a world file's path (str)."""
+    generator's seed (int) or a world file's path (str). ``floor``: also the floor of
+    Algorithm 1's path on the true world (:mod:`coverage_pkg.algorithm1_floor`)."""
     from coverage_pkg.kinematic import run_kinematic
     from coverage_pkg.world import load_world
     from coverage_pkg.worldgen import write_worlds
@@ -73,6 +77,11 @@ def measure_world(seed: int | str, png_dir: str | None = None, max_time: float =
            'sim': r['sim_time'], 'wall': r['wall_time'],
            'per_bound': {k: lengths.get(k, 0.0) / r['lower_bound'] * (
                r['path_length'] / total if total else 0.0) for k in PRIMITIVES}}
+    if floor:
+        from coverage_pkg.algorithm1_floor import algorithm1_floor
+        cfg = PaperConfig(**(config or {}))
+        f = algorithm1_floor(world, cfg.radius, cfg.delta, cfg.view_margin)
+        row['floor'] = f['floor'] / r['lower_bound']
     if png_dir:
         from coverage_pkg.figure import render_coverage
         Path(png_dir).mkdir(parents=True, exist_ok=True)
@@ -90,6 +99,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument('--jobs', type=int, default=1, help='worlds run in parallel')
     ap.add_argument('--png', default=None, help='directory for one picture per world')
     ap.add_argument('--max-sim-time', type=float, default=3000.0)
+    ap.add_argument('--floor', action='store_true',
+                    help='also the floor of Algorithm 1 on the true world '
+                    '(coverage_pkg/algorithm1_floor.py) as a multiple of the bound, and path / '
+                    'floor')
     ap.add_argument('--set', action='append', default=[], metavar='NAME=VALUE',
                     help="a PaperConfig field, e.g. 'circuit_sweeps=true', or 'rules=paper' "
                     '(repeatable; later ones override earlier ones)')
@@ -105,22 +118,28 @@ def main(argv: list[str] | None = None) -> int:
     seeds = list(args.world) or parse_seeds(args.seeds)
     with ProcessPoolExecutor(max(1, args.jobs)) as ex:
         rows = list(ex.map(measure_world, seeds, [args.png] * len(seeds),
-                           [args.max_sim_time] * len(seeds), [config] * len(seeds)))
+                           [args.max_sim_time] * len(seeds), [config] * len(seeds),
+                           [args.floor] * len(seeds)))
+    floor_head = ' floor/bound | path/floor |' if args.floor else ''
     print('| world | state | covered | path/bound | ' + ' | '.join(PRIMITIVES) +
-          ' | primitives | update median ms (CPU) | p99 ms (CPU) | sim s |')
-    print('|---' * (9 + len(PRIMITIVES)) + '|')
+          ' | primitives | update median ms (CPU) | p99 ms (CPU) | sim s |' + floor_head)
+    print('|---' * (9 + len(PRIMITIVES) + 2 * args.floor) + '|')
     for r in rows:
         per = ' | '.join(f"{r['per_bound'][k]:.2f}" for k in PRIMITIVES)
+        floor_cells = f" {r['floor']:.2f} | {r['ratio'] / r['floor']:.2f} |" if args.floor \
+            else ''
         print(f"| {r['world']} | {r['state']} | {100 * r['covered']:.2f} % | {r['ratio']:.2f} | "
               f"{per} | {100 * r['primitive']:.1f} % | {r['median_ms']:.2f} | "
-              f"{r['p99_ms']:.2f} | {r['sim']:.0f} |")
+              f"{r['p99_ms']:.2f} | {r['sim']:.0f} |{floor_cells}")
     cov = [r['covered'] for r in rows]
     print(f"| mean ({len(rows)}) | - | {100 * np.mean(cov):.2f} % (min {100 * min(cov):.2f}) | "
           f"{np.mean([r['ratio'] for r in rows]):.2f} | " +
           ' | '.join(f"{np.mean([r['per_bound'][k] for r in rows]):.2f}" for k in PRIMITIVES) +
           f" | {100 * np.mean([r['primitive'] for r in rows]):.1f} % | "
           f"{np.median([r['median_ms'] for r in rows]):.2f} | "
-          f"{max(r['p99_ms'] for r in rows):.2f} | - |")
+          f"{max(r['p99_ms'] for r in rows):.2f} | - |" +
+          (f" {np.mean([r['floor'] for r in rows]):.2f} | "
+           f"{np.mean([r['ratio'] / r['floor'] for r in rows]):.2f} |" if args.floor else ''))
     sys.stdout.flush()
     return 0
 

@@ -335,6 +335,10 @@ def register(subparsers):
     ratio.add_argument('--oracle', action='store_true',
                        help='also plan the full-knowledge route (coverage_pkg/oracle.py, reads '
                        'the true world) and print its ratio and planner/oracle')
+    ratio.add_argument('--floor', action='store_true',
+                       help='also the floor of Algorithm 1 on the true world '
+                       '(coverage_pkg/algorithm1_floor.py: its GVD edges and circles at D = '
+                       'delta, each driven once) and planner/floor')
     ratio.add_argument('--events', action='store_true',
                        help='also check every sensed cusp and meet point against the true '
                        'world (coverage_pkg/event_check.py, fine ray casting; evaluation only)')
@@ -353,7 +357,7 @@ def _ratio(args):
     config = PaperConfig(without=parse_without(args.without), **parse_modes(args.mode)) \
         if args.planner == 'paper' else None
     ratio_report(paths, config, baseline=args.baseline, oracle=args.oracle,
-                 max_time=args.max_sim_time, events=args.events)
+                 max_time=args.max_sim_time, events=args.events, floor=args.floor)
     return 0
 
 

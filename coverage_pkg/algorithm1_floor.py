@@ -1,0 +1,203 @@
+"""The shortest path that drives what Algorithm 1 must drive (evaluation only).
+
+Algorithm 1 covers narrow space by tracing its GVD edges and vast space by boundary circuits
+at D = delta and laps. Whatever the order, the robot drives every GVD edge of the narrow
+space (up to where all ahead lies within range, the rule that ends a branch at a dead end)
+and every closed curve D = delta once at least. This module computes, **with the true map**,
+a lower estimate of the path that does that - to say how much of the paper planner's path /
+bound ratio is the method on the world and how much is the planner:
+
+1. the grid of :class:`coverage_pkg.cvs.CoverableSet` (0.05 m) and its clearance D;
+2. the narrow GVD: the medial axis of the free space (``skimage.morphology.medial_axis``)
+   where r < D < delta; the curves D = delta: the boundary cells of {D >= delta};
+3. dead ends trimmed: a leaf of the GVD is peeled back while every point it has shed lies
+   within ``delta - view_margin`` of it (the planner's branch end, measured to the GVD and
+   not to the wall beyond, so it trims at least as much as the planner does);
+4. required length: the chains of what is left, each simplified to within one grid cell
+   (the grid's staircase would overstate them by up to 8 %);
+5. a lower bound of the shortest walk from the start that drives all of it (a rural
+   postman problem): the way from the start to the nearest required cell, plus the required
+   length, plus a minimum-weight perfect matching (``networkx.min_weight_matching``) of the
+   odd-degree vertices, two of them free (the walk's ends), on geodesic distances in FCS_r
+   (``skimage.graph.MCP_Geometric``): the shortest set of extra ways that makes every
+   degree even but the ends'. The pieces are not required to be joined, so the bound holds
+   where the required set falls apart.
+
+Laps, the way between disconnected pieces and anything the sensors make the robot do are not
+counted, so the planner's path can only be longer - except where the planner skips a stretch
+the floor counts (the report says so where it happens). Unlike the full-knowledge route of
+:mod:`coverage_pkg.oracle` this is not what any robot needs: it is what this method needs.
+The planner never uses it.
+"""
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from coverage_pkg.cvs import CoverableSet
+
+if TYPE_CHECKING:
+    from coverage_pkg.world import World
+
+_STEPS = [(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)]
+
+
+def required_cells(cvs: CoverableSet, delta: float, radius: float,
+                   view_margin: float = 0.3) -> tuple[np.ndarray, np.ndarray]:
+    """Boolean grids: the narrow GVD cells Algorithm 1 traces (dead ends trimmed) and the
+    cells of the curves D = delta it circles."""
+    from scipy import ndimage
+    from skimage.morphology import medial_axis, skeletonize
+    free = _reachable_free(cvs)
+    d = cvs.clearance
+    gvd = medial_axis(free) & (d > radius) & (d < delta)
+    vast = free & (d >= delta)
+    cross = ndimage.generate_binary_structure(2, 1)
+    ring = vast & ~ndimage.binary_erosion(vast, structure=cross, border_value=0)
+    thin = skeletonize(gvd | ring)
+    ring &= thin
+    gvd = thin & ~ring
+    # A GVD cell next to a circle cell joins it: the cusp where the edge reaches D = delta.
+    return _trim_dead_ends(gvd, ring, cvs.res, delta - view_margin), ring
+
+
+def _reachable_free(cvs):
+    """Free cells of the world in the component the robot starts in."""
+    from scipy import ndimage
+    lab, _ = ndimage.label(cvs.free)
+    ids = np.unique(lab[cvs.fcs])
+    return np.isin(lab, ids[ids > 0])
+
+
+def _neighbours(mask, r, c):
+    """Neighbours of a cell on a thin curve: the four sides, and a diagonal only where
+    neither cell beside it is on the curve (no triangles, so degrees are a graph's)."""
+    h, w = mask.shape
+
+    def on(rr, cc):
+        return 0 <= rr < h and 0 <= cc < w and mask[rr, cc]
+
+    for dr, dc in _STEPS:
+        if on(r + dr, c + dc) and (dr == 0 or dc == 0 or
+                                   not (on(r + dr, c) or on(r, c + dc))):
+            yield r + dr, c + dc
+
+
+def _trim_dead_ends(gvd, ring, res, reach):
+    """Peel leaves of the GVD while every cell they shed lies within ``reach`` m."""
+    keep = gvd.copy()
+    both = gvd | ring
+    degree = {}
+    for r, c in zip(*np.nonzero(gvd)):
+        degree[(r, c)] = sum(1 for _ in _neighbours(both, r, c))
+    shed = {k: [] for k in degree}
+    stack = [k for k, v in degree.items() if v <= 1]
+    while stack:
+        cell = stack.pop()
+        if not keep[cell]:
+            continue
+        ends = shed[cell] or [cell]
+        if max(math.hypot(cell[0] - e[0], cell[1] - e[1]) for e in ends) * res > reach:
+            continue
+        keep[cell] = False
+        both[cell] = False
+        for n in _neighbours(both, *cell):
+            if n in degree:
+                shed[n].extend(ends)
+                degree[n] -= 1
+                if degree[n] <= 1:
+                    stack.append(n)
+    return keep
+
+
+def _chains(mask, res):
+    """Graph of the mask's cells: vertices where the degree is not 2, edges the chains
+    between them with their simplified length. Returns (vertex cells, [(a, b, length)])."""
+    import shapely
+    cells = set(zip(*np.nonzero(mask)))
+    nbrs = {k: list(_neighbours(mask, *k)) for k in cells}
+    verts = {k for k, v in nbrs.items() if len(v) != 2}
+    edges, used = [], set()
+
+    def walk(a, b):
+        chain = [a, b]
+        while chain[-1] not in verts:
+            nxt = [n for n in nbrs[chain[-1]] if n != chain[-2]]
+            if not nxt:
+                break
+            chain.append(nxt[0])
+            if nxt[0] == chain[0]:
+                break
+        return chain
+
+    for a in verts:
+        for b in nbrs[a]:
+            if (a, b) in used:
+                continue
+            chain = walk(a, b)
+            for p, q in zip(chain[:-1], chain[1:]):
+                used.add((p, q))
+                used.add((q, p))
+            edges.append((a, chain[-1], _length(chain, res, shapely)))
+    for k in cells:                       # closed curves without a vertex: a loop each
+        if k in verts or any((k, n) in used for n in nbrs[k]):
+            continue
+        verts.add(k)
+        chain = walk(k, nbrs[k][0])
+        if chain[-1] != k:
+            chain.append(k)
+        for p, q in zip(chain[:-1], chain[1:]):
+            used.add((p, q))
+            used.add((q, p))
+        edges.append((k, k, _length(chain, res, shapely)))
+    return verts, edges
+
+
+def _length(chain, res, shapely):
+    if len(chain) < 2:
+        return 0.0
+    pts = np.asarray(chain, dtype=float)[:, ::-1] * res
+    return float(shapely.LineString(pts).simplify(res).length)
+
+
+def algorithm1_floor(world: World, radius: float = 0.25, delta: float = 2.0,
+                     view_margin: float = 0.3) -> dict[str, object]:
+    """The floor of Algorithm 1's path on ``world`` (see the module doc). Returns the floor,
+    its parts (narrow GVD, curves D = delta, the matching), the lower bound and the number
+    of odd vertices matched."""
+    import networkx as nx
+    from skimage.graph import MCP_Geometric
+    cvs = CoverableSet(world, radius, delta, 0.05)
+    gvd, ring = required_cells(cvs, delta, radius, view_margin)
+    verts, edges = _chains(gvd | ring, cvs.res)
+    gvd_len = sum(length for a, b, length in edges if gvd[a] or gvd[b])
+    total = sum(length for *_, length in edges)
+    degree = {v: 0 for v in verts}
+    for a, b, _ in edges:
+        degree[a] += 1
+        degree[b] += 1
+    odd = sorted(v for v, k in degree.items() if k % 2)
+    start = cvs.cell_of(world.start)
+    passable = cvs.fcs.copy()
+    passable[start] = True
+    cost = np.where(passable, 1.0, np.inf)
+    # The way from the start to the first required cell reached: at least the nearest one.
+    cum, _ = MCP_Geometric(cost).find_costs([start])
+    reach = cum[gvd | ring]
+    lead = float(reach[np.isfinite(reach)].min() * cvs.res) if np.isfinite(reach).any() else 0.0
+    g = nx.Graph()
+    for i, a in enumerate(odd):
+        cum, _ = MCP_Geometric(cost).find_costs([a])
+        for end in ('first', 'last'):       # the walk's two ends: free
+            g.add_edge(i, end, weight=0.0)
+        for j in range(i + 1, len(odd)):
+            if np.isfinite(cum[odd[j]]):
+                g.add_edge(i, j, weight=float(cum[odd[j]] * cvs.res))
+    matching = nx.min_weight_matching(g) if len(odd) > 1 else set()
+    extra = sum(g.edges[a, b]['weight'] for a, b in matching)
+    return {'floor': lead + total + extra, 'gvd': gvd_len, 'circles': total - gvd_len,
+            'lead': lead, 'matching': extra, 'odd': len(odd),
+            'lower_bound': cvs.lower_bound_path(),
+            'gvd_cells': gvd, 'circle_cells': ring, 'cvs': cvs}

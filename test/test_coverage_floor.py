@@ -1,0 +1,72 @@
+"""The floor of Algorithm 1's path (coverage_pkg/algorithm1_floor.py) against hand-computed
+values, and the paper planner's path against it."""
+import math
+from pathlib import Path
+
+import pytest
+
+from coverage_pkg.algorithm1 import PaperConfig
+from coverage_pkg.algorithm1_floor import algorithm1_floor
+from coverage_pkg.kinematic import run_kinematic
+from coverage_pkg.world import load_world, world_from_dict
+
+WORLDS = Path(__file__).resolve().parents[1] / 'coverage_pkg' / 'worlds'
+# The medial axis ends where D = r, at (11.75, 0.25) and (11.75, 1.15) by the far corners
+# (and at x = 0.25 by the near ones). A branch is ended where all it leaves lies within
+# delta - view_margin = 1.7 m: on the centre line y = 0.7 that is 1.7 m from those ends.
+TRIM = math.sqrt(1.7 ** 2 - 0.45 ** 2)
+
+
+def test_a_dead_end_corridor_needs_its_centre_line_up_to_the_trimmed_ends():
+    world = world_from_dict({'name': 'dead_end', 'boundary': [[0, 0], [12, 0], [12, 1.4],
+                                                              [0, 1.4]],
+                             'obstacles': [], 'start': [1.0, 0.7]})
+    f = algorithm1_floor(world)
+    left, right = 0.25 + TRIM, 11.75 - TRIM
+    assert f['circles'] == 0.0                       # D < delta everywhere: all narrow
+    assert f['lead'] == pytest.approx(left - 1.0, abs=0.08)
+    assert f['gvd'] == pytest.approx(right - left, abs=0.1)
+    assert f['matching'] == pytest.approx(0.0, abs=1e-9)      # one line: its ends are free
+    assert right - 1.0 - 0.15 <= f['floor'] <= right - 1.0 + 0.05
+
+
+def test_a_room_needs_its_circle_at_delta_and_the_corner_edges_up_to_their_trimmed_ends():
+    # 10 x 8 m, no obstacle: {D >= 2} is the 6 x 4 m rectangle around the middle, so its
+    # circle is 20 m. The corner edges run from its corners to (0.25, 0.25) and the like,
+    # 2.47 m, of which 2.47 - 1.7 m is left. The robot starts in the middle, 2 m from the
+    # circle, and drives each corner edge out and back but the last one.
+    world = world_from_dict({'name': 'room', 'boundary': [[0, 0], [10, 0], [10, 8], [0, 8]],
+                             'obstacles': [], 'start': [5.0, 4.0]})
+    f = algorithm1_floor(world)
+    spur = math.hypot(1.75, 1.75) - 1.7
+    need = 2.0 + 20.0 + 4 * 2 * spur - spur
+    assert f['circles'] == pytest.approx(20.0, abs=0.4)
+    assert f['gvd'] == pytest.approx(4 * spur, abs=0.4)
+    assert f['odd'] == 8                                # four corners, four edge ends
+    assert need - 1.0 <= f['floor'] <= need + 0.1
+
+
+def test_a_loop_round_an_obstacle_is_needed_once_and_not_out_and_back():
+    # A 1.4 m ring corridor round a 7.2 m square obstacle: its GVD is one loop (with four
+    # short corner edges, trimmed away), driven once from a start on it: at least 4 x 7.2 m.
+    # A tree's out-and-back would be about twice that.
+    world = world_from_dict({'name': 'ring', 'boundary': [[0, 0], [10, 0], [10, 10], [0, 10]],
+                             'obstacles': [[[1.4, 1.4], [8.6, 1.4], [8.6, 8.6], [1.4, 8.6]]],
+                             'start': [5.0, 0.7]})
+    f = algorithm1_floor(world)
+    assert 4 * 7.2 <= f['floor'] <= 4 * 8.6
+    assert f['matching'] == pytest.approx(0.0, abs=0.2)
+
+
+@pytest.mark.slow                     # one closed-loop run, about 10 s
+@pytest.mark.parametrize('name', ['t_hall.json', 'door_rooms.json'])
+def test_the_paper_planner_drives_at_least_the_floor(name):
+    """The floor counts only what Algorithm 1 must drive; a paper planner path below it
+    would mean the planner skipped a GVD edge or a circle at D = delta (or the floor counts
+    one the method does not need)."""
+    world = load_world(WORLDS / name)
+    r = run_kinematic(world, PaperConfig())
+    f = algorithm1_floor(world)
+    assert r['state'] == 'done'
+    assert f['floor'] <= r['path_length']
+    assert f['lower_bound'] == pytest.approx(r['lower_bound'])
