@@ -16,12 +16,15 @@ bound ratio is the method on the world and how much is the planner:
 4. required length: the chains of what is left, each simplified to within one grid cell
    (the grid's staircase would overstate them by up to 8 %);
 5. a lower bound of the shortest walk from the start that drives all of it (a rural
-   postman problem): the way from the start to the nearest required cell, plus the required
-   length, plus a minimum-weight perfect matching (``networkx.min_weight_matching``) of the
-   odd-degree vertices, two of them free (the walk's ends), on geodesic distances in FCS_r
-   (``skimage.graph.MCP_Geometric``): the shortest set of extra ways that makes every
-   degree even but the ends'. The pieces are not required to be joined, so the bound holds
-   where the required set falls apart.
+   postman problem): the walk reaches the required set at some cell p and drives all of it
+   from there, so it is at least the way from the start to p, plus the required length,
+   plus a minimum-weight perfect matching (``networkx.min_weight_matching``) of the
+   odd-degree vertices (p's degree toggled) and one free end, on geodesic distances in
+   FCS_r (``skimage.graph.MCP_Geometric``): the shortest set of extra ways that makes every
+   degree even but the walk's ends'. The least over p is taken (cells p within 3 m of the
+   nearest are tried every 0.2 m, less 0.4 m for the cells between; a farther one is bounded
+   from below). The pieces are not required to be joined,
+   so the bound holds where the required set falls apart.
 
 Laps, the way between disconnected pieces and anything the sensors make the robot do are not
 counted, so the planner's path can only be longer - except where the planner skips a stretch
@@ -164,9 +167,12 @@ def _length(chain, res, shapely):
 
 def algorithm1_floor(world: World, radius: float = 0.25, delta: float = 2.0,
                      view_margin: float = 0.3) -> dict[str, object]:
-    """The floor of Algorithm 1's path on ``world`` (see the module doc). Returns the floor,
-    its parts (narrow GVD, curves D = delta, the matching), the lower bound and the number
-    of odd vertices matched."""
+    """The floor of Algorithm 1's path on ``world`` (see the module doc). Returns the floor
+    (m) and its parts: ``gvd`` and ``circles``, the required length on narrow GVD edges and
+    on the curves D = delta; ``extra``, the least driving beside them (from the start to the
+    required set and the matching; ``lead``, its first part, to the nearest required cell);
+    ``odd``, the number of odd-degree vertices; the lower bound |CVS| / (2 delta) and the
+    grids of the required cells."""
     import networkx as nx
     from skimage.graph import MCP_Geometric
     cvs = CoverableSet(world, radius, delta, 0.05)
@@ -183,21 +189,55 @@ def algorithm1_floor(world: World, radius: float = 0.25, delta: float = 2.0,
     passable = cvs.fcs.copy()
     passable[start] = True
     cost = np.where(passable, 1.0, np.inf)
-    # The way from the start to the first required cell reached: at least the nearest one.
-    cum, _ = MCP_Geometric(cost).find_costs([start])
-    reach = cum[gvd | ring]
-    lead = float(reach[np.isfinite(reach)].min() * cvs.res) if np.isfinite(reach).any() else 0.0
-    g = nx.Graph()
+    required = gvd | ring
+    from_start, _ = MCP_Geometric(cost).find_costs([start])
+    from_start = np.where(required, from_start * cvs.res, np.inf)
+    lead = float(from_start.min()) if np.isfinite(from_start).any() else 0.0
+    pair = {}                                        # geodesic distances between odd vertices
     for i, a in enumerate(odd):
         cum, _ = MCP_Geometric(cost).find_costs([a])
-        for end in ('first', 'last'):       # the walk's two ends: free
-            g.add_edge(i, end, weight=0.0)
         for j in range(i + 1, len(odd)):
             if np.isfinite(cum[odd[j]]):
-                g.add_edge(i, j, weight=float(cum[odd[j]] * cvs.res))
-    matching = nx.min_weight_matching(g) if len(odd) > 1 else set()
-    extra = sum(g.edges[a, b]['weight'] for a, b in matching)
-    return {'floor': lead + total + extra, 'gvd': gvd_len, 'circles': total - gvd_len,
-            'lead': lead, 'matching': extra, 'odd': len(odd),
+                pair[i, j] = float(cum[odd[j]] * cvs.res)
+
+    def matching(entry=None, entry_dist=None, ends=1):
+        """Minimum-weight perfect matching of the odd vertices (toggled by ``entry``, the
+        cell where the walk enters the required set) and ``ends`` free ends."""
+        g = nx.Graph()
+        nodes = [i for i in range(len(odd)) if odd[i] != entry]
+        g.add_edges_from((i, j, {'weight': w}) for (i, j), w in pair.items()
+                         if i in nodes and j in nodes)
+        for i in nodes:
+            for e in range(ends):
+                g.add_edge(i, ('end', e), weight=0.0)
+        if entry is not None and entry not in odd:
+            for i in nodes:
+                if np.isfinite(entry_dist[odd[i]]):
+                    g.add_edge('entry', i, weight=float(entry_dist[odd[i]] * cvs.res))
+            for e in range(ends):
+                g.add_edge('entry', ('end', e), weight=0.0)
+        m = nx.min_weight_matching(g)
+        return sum(g.edges[u, v]['weight'] for u, v in m)
+
+    # The walk enters the required set at some cell p and covers it from there: at least
+    # d(start, p) + L + matching(odd toggled at p, one free end). Cells p within ``window``
+    # beyond the nearest are tried, every ``spacing`` at most; both terms change by at most
+    # the distance between two cells, so the least found less twice the spacing bounds every
+    # p of the window. Any farther p costs at least lead + window + the matching with two
+    # free ends (which no p can undercut).
+    window, spacing = 3.0, 0.2
+    extra = lead + window + matching(ends=2)
+    rows, cols = np.nonzero(from_start <= lead + window)
+    tried, best = [], math.inf
+    for k in np.argsort(from_start[rows, cols], kind='stable'):
+        p = (int(rows[k]), int(cols[k]))
+        if any(math.dist(p, q) * cvs.res < spacing for q in tried):
+            continue
+        tried.append(p)
+        entry_dist, _ = MCP_Geometric(cost).find_costs([p])
+        best = min(best, from_start[p] + matching(p, entry_dist))
+    extra = max(lead, min(extra, best - 2 * spacing))
+    return {'floor': total + extra, 'gvd': gvd_len, 'circles': total - gvd_len,
+            'lead': lead, 'extra': extra, 'odd': len(odd),
             'lower_bound': cvs.lower_bound_path(),
             'gvd_cells': gvd, 'circle_cells': ring, 'cvs': cvs}
