@@ -47,19 +47,27 @@ if TYPE_CHECKING:
 _STEPS = [(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)]
 
 
-def required_cells(cvs: CoverableSet, delta: float, radius: float,
-                   view_margin: float = 0.3) -> tuple[np.ndarray, np.ndarray]:
+def required_cells(cvs: CoverableSet, delta: float, radius: float, view_margin: float = 0.3,
+                   rng: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """Boolean grids: the narrow GVD cells Algorithm 1 traces (dead ends trimmed) and the
-    cells of the curves D = delta it circles."""
+    cells of the curves D = delta it circles. ``rng``: the medial axis's tie-breaking seed
+    (fixed, so that the floor of a world is one number)."""
     from scipy import ndimage
     from skimage.morphology import medial_axis, skeletonize
     free = _reachable_free(cvs)
     d = cvs.clearance
-    gvd = medial_axis(free) & (d > radius) & (d < delta)
+    gvd = medial_axis(free, rng=rng) & (d > radius) & (d < delta)
     vast = free & (d >= delta)
     cross = ndimage.generate_binary_structure(2, 1)
     ring = vast & ~ndimage.binary_erosion(vast, structure=cross, border_value=0)
     thin = skeletonize(gvd | ring)
+    # The grid's medial axis has small loops round no obstacle (a true GVD loop goes round
+    # one, and a circle round vast space): filled and thinned again, each is one line.
+    lab, _ = ndimage.label(~thin, structure=cross)
+    kept = np.unique(lab[~free | vast])
+    bubbles = (lab > 0) & ~np.isin(lab, kept)
+    if bubbles.any():
+        thin = skeletonize(thin | bubbles)
     ring &= thin
     gvd = thin & ~ring
     # A GVD cell next to a circle cell joins it: the cusp where the edge reaches D = delta.
