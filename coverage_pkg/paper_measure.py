@@ -123,7 +123,7 @@ def main(argv: list[str] | None = None) -> int:
     floor_head = ' floor/bound | path/floor |' if args.floor else ''
     print('| world | state | covered | path/bound | ' + ' | '.join(PRIMITIVES) +
           ' | primitives | update median ms (CPU) | p99 ms (CPU) | sim s |' + floor_head)
-    print('|---' * (9 + len(PRIMITIVES) + 2 * args.floor) + '|')
+    print('|---' * (8 + len(PRIMITIVES) + 2 * args.floor) + '|')
     for r in rows:
         per = ' | '.join(f"{r['per_bound'][k]:.2f}" for k in PRIMITIVES)
         floor_cells = f" {r['floor']:.2f} | {r['ratio'] / r['floor']:.2f} |" if args.floor \

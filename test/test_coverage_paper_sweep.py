@@ -53,3 +53,16 @@ def test_paper_measure_reads_world_files_and_refuses_a_bad_one(tmp_path, capsys)
         main(['--world', str(world), '--world', str(bad)])
     assert str(exc.value).startswith('paper_measure: ') and 'bad.json' in str(exc.value)
     assert '\n' not in str(exc.value) and capsys.readouterr().out == ''
+
+
+def test_paper_measure_floor_adds_the_floor_and_path_over_floor(capsys):
+    """``--floor``: two more columns, the floor of Algorithm 1 (a multiple of the bound, below
+    the path's) and path / floor; header, rule and rows have as many columns."""
+    from coverage_pkg.paper_measure import main
+    main(['--world', str(WORLDS / 't_hall.json'), '--floor'])
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].endswith('| floor/bound | path/floor |')
+    assert len({line.count('|') for line in lines}) == 1
+    cells = [c.strip() for c in lines[2].split('|')]
+    ratio, floor, over = float(cells[4]), float(cells[-3]), float(cells[-2])
+    assert 1.0 < floor < ratio and over == pytest.approx(ratio / floor, abs=0.01)
