@@ -40,6 +40,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from coverage_pkg.cvs import CoverableSet
+from coverage_pkg.oracle import geodesic
 
 if TYPE_CHECKING:
     from coverage_pkg.world import World
@@ -126,7 +127,6 @@ def _trim_dead_ends(gvd, ring, res, reach):
 def _chains(mask, res):
     """Graph of the mask's cells: vertices where the degree is not 2, edges the chains
     between them with their simplified length. Returns (vertex cells, [(a, b, length)])."""
-    import shapely
     cells = set(zip(*np.nonzero(mask)))
     nbrs = {k: list(_neighbours(mask, *k)) for k in cells}
     verts = {k for k, v in nbrs.items() if len(v) != 2}
@@ -151,7 +151,7 @@ def _chains(mask, res):
             for p, q in zip(chain[:-1], chain[1:]):
                 used.add((p, q))
                 used.add((q, p))
-            edges.append((a, chain[-1], _length(chain, res, shapely)))
+            edges.append((a, chain[-1], _length(chain, res)))
     for k in cells:                       # closed curves without a vertex: a loop each
         if k in verts or any((k, n) in used for n in nbrs[k]):
             continue
@@ -162,11 +162,13 @@ def _chains(mask, res):
         for p, q in zip(chain[:-1], chain[1:]):
             used.add((p, q))
             used.add((q, p))
-        edges.append((k, k, _length(chain, res, shapely)))
+        edges.append((k, k, _length(chain, res)))
     return verts, edges
 
 
-def _length(chain, res, shapely):
+def _length(chain, res):
+    """Length of a chain of cells, simplified to within one cell (no grid staircase)."""
+    import shapely
     if len(chain) < 2:
         return 0.0
     pts = np.asarray(chain, dtype=float)[:, ::-1] * res
@@ -182,7 +184,6 @@ def algorithm1_floor(world: World, radius: float = 0.25, delta: float = 2.0,
     ``odd``, the number of odd-degree vertices; the lower bound |CVS| / (2 delta) and the
     grids of the required cells."""
     import networkx as nx
-    from skimage.graph import MCP_Geometric
     cvs = CoverableSet(world, radius, delta, 0.05)
     gvd, ring = required_cells(cvs, delta, radius, view_margin)
     verts, edges = _chains(gvd | ring, cvs.res)
@@ -196,14 +197,13 @@ def algorithm1_floor(world: World, radius: float = 0.25, delta: float = 2.0,
     start = cvs.cell_of(world.start)
     passable = cvs.fcs.copy()
     passable[start] = True
-    cost = np.where(passable, 1.0, np.inf)
     required = gvd | ring
-    from_start, _ = MCP_Geometric(cost).find_costs([start])
+    _, from_start = geodesic(passable, [start])
     from_start = np.where(required, from_start * cvs.res, np.inf)
     lead = float(from_start.min()) if np.isfinite(from_start).any() else 0.0
     pair = {}                                        # geodesic distances between odd vertices
     for i, a in enumerate(odd):
-        cum, _ = MCP_Geometric(cost).find_costs([a])
+        _, cum = geodesic(passable, [a])
         for j in range(i + 1, len(odd)):
             if np.isfinite(cum[odd[j]]):
                 pair[i, j] = float(cum[odd[j]] * cvs.res)
@@ -212,7 +212,7 @@ def algorithm1_floor(world: World, radius: float = 0.25, delta: float = 2.0,
         """Minimum-weight perfect matching of the odd vertices (toggled by ``entry``, the
         cell where the walk enters the required set) and ``ends`` free ends."""
         g = nx.Graph()
-        nodes = [i for i in range(len(odd)) if odd[i] != entry]
+        nodes = {i for i in range(len(odd)) if odd[i] != entry}
         g.add_edges_from((i, j, {'weight': w}) for (i, j), w in pair.items()
                          if i in nodes and j in nodes)
         for i in nodes:
@@ -242,7 +242,7 @@ def algorithm1_floor(world: World, radius: float = 0.25, delta: float = 2.0,
         if any(math.dist(p, q) * cvs.res < spacing for q in tried):
             continue
         tried.append(p)
-        entry_dist, _ = MCP_Geometric(cost).find_costs([p])
+        _, entry_dist = geodesic(passable, [p])
         best = min(best, from_start[p] + matching(p, entry_dist))
     extra = max(lead, min(extra, best - 2 * spacing))
     return {'floor': total + extra, 'gvd': gvd_len, 'circles': total - gvd_len,

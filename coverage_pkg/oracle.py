@@ -36,8 +36,9 @@ if TYPE_CHECKING:
     from coverage_pkg.world import World
 
 
-def _geodesic(passable, sources):
-    """MCP_Geometric on the passable cells; returns the engine and the cost-to-go array."""
+def geodesic(passable: np.ndarray, sources: list) -> tuple[object, np.ndarray]:
+    """MCP_Geometric on the passable cells from the ``sources`` cells; returns the engine and
+    the cost-to-go array (in cells; inf where not reached)."""
     from skimage.graph import MCP_Geometric
     cost = np.where(passable, 1.0, np.inf)
     m = MCP_Geometric(cost)
@@ -216,7 +217,7 @@ class OracleRoute:
         self._engines = []
         dist = np.zeros((n, n))
         for i, c in enumerate(self._cells):
-            m, cum = _geodesic(self.passable, [c])
+            m, cum = geodesic(self.passable, [c])
             self._engines.append(m)
             for j, d in enumerate(self._cells):
                 dist[i, j] = cum[d] * cvs.res
