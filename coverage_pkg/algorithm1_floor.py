@@ -26,6 +26,13 @@ bound ratio is the method on the world and how much is the planner:
    from below). The pieces are not required to be joined,
    so the bound holds where the required set falls apart.
 
+:func:`nearest_first_walk` drives the same required set in an order an online robot could
+follow: it learns an edge when it stands at one of its ends, and always drives to the nearest
+edge it knows (ties between the edges of one vertex, whose lengths it cannot know, in a
+random order). It is an estimate of what Algorithm 1 needs with FindUncoveredNode's
+nearest-first choice, idealised: it senses every edge at once and drives the true shortest
+way to it.
+
 Laps, the way between disconnected pieces and anything the sensors make the robot do are not
 counted, so the planner's path can only be longer - except where the planner skips a stretch
 the floor counts (the report says so where it happens). Unlike the full-knowledge route of
@@ -124,12 +131,13 @@ def _trim_dead_ends(gvd, ring, res, reach):
     return keep
 
 
-def _chains(mask, res):
-    """Graph of the mask's cells: vertices where the degree is not 2, edges the chains
-    between them with their simplified length. Returns (vertex cells, [(a, b, length)])."""
+def _chains(mask, res, extra=()):
+    """Graph of the mask's cells: vertices where the degree is not 2 and the cells
+    ``extra``, edges the chains between them with their simplified length. Returns (vertex
+    cells, [(a, b, length)])."""
     cells = set(zip(*np.nonzero(mask)))
     nbrs = {k: list(_neighbours(mask, *k)) for k in cells}
-    verts = {k for k, v in nbrs.items() if len(v) != 2}
+    verts = {k for k, v in nbrs.items() if len(v) != 2} | (set(extra) & cells)
     edges, used = [], set()
 
     def walk(a, b):
@@ -249,3 +257,55 @@ def algorithm1_floor(world: World, radius: float = 0.25, delta: float = 2.0,
             'lead': lead, 'extra': extra, 'odd': len(odd),
             'lower_bound': cvs.lower_bound_path(),
             'gvd_cells': gvd, 'circle_cells': ring, 'cvs': cvs}
+
+
+def nearest_first_walk(world: World, radius: float = 0.25, delta: float = 2.0,
+                       view_margin: float = 0.3, orders: int = 32) -> dict[str, object]:
+    """The path of a nearest-first online order over the required set of
+    :func:`algorithm1_floor` (see the module doc). The walk goes from the start to the
+    nearest required cell p (a vertex); at each step it drives the geodesic way to the
+    nearest end of an undriven edge that touches a vertex it has reached, and then the
+    whole edge. Edges of one vertex tie; ``orders`` seeded random tie-breaks are walked.
+    Returns the mean, least and largest walk (m), the required length and the bound."""
+    import random
+    cvs = CoverableSet(world, radius, delta, 0.05)
+    gvd, ring = required_cells(cvs, delta, radius, view_margin)
+    required = gvd | ring
+    start = cvs.cell_of(world.start)
+    passable = cvs.fcs.copy()
+    passable[start] = True
+    _, from_start = geodesic(passable, [start])
+    from_start = np.where(required, from_start * cvs.res, np.inf)
+    if not np.isfinite(from_start).any():
+        return {'walk': 0.0, 'walk_min': 0.0, 'walk_max': 0.0, 'required': 0.0,
+                'lower_bound': cvs.lower_bound_path()}
+    p = tuple(int(i) for i in np.unravel_index(np.argmin(from_start), from_start.shape))
+    lead = float(from_start[p])
+    verts, chains = _chains(required, cvs.res, extra=[p])
+    verts = sorted(verts)
+    index = {v: i for i, v in enumerate(verts)}
+    dist = np.empty((len(verts), len(verts)))
+    for i, v in enumerate(verts):
+        _, cum = geodesic(passable, [v])
+        dist[i] = [cum[w] * cvs.res for w in verts]
+    edges = [(index[a], index[b], length) for a, b, length in chains]
+    walks = []
+    for order in range(orders):
+        rng = random.Random(order)
+        tie = [rng.random() for _ in edges]
+        todo, reached, here, walk = set(range(len(edges))), {index[p]}, index[p], lead
+        while todo:
+            best = min(((dist[here, u], tie[k], k, u, w) for k in todo
+                        for u, w in (edges[k][:2], edges[k][1::-1])
+                        if u in reached and np.isfinite(dist[here, u])), default=None)
+            if best is None:          # the rest lies beyond what the start can reach
+                break
+            way, _, k, _, w = best
+            walk += way + edges[k][2]
+            todo.discard(k)
+            reached.add(w)
+            here = w
+        walks.append(walk)
+    return {'walk': float(np.mean(walks)), 'walk_min': float(min(walks)),
+            'walk_max': float(max(walks)), 'required': sum(e[2] for e in edges),
+            'lower_bound': cvs.lower_bound_path()}

@@ -11,7 +11,8 @@ update time per sweep (median and 99th percentile of the CPU time of the planner
 ``time.thread_time``, so that other jobs on a shared machine do not count). ``--png`` draws
 each run; ``--floor`` adds the floor of Algorithm 1's path on the true world
 (:mod:`coverage_pkg.algorithm1_floor`) and path / floor: how far the planner is from what the
-method needs.
+method needs, and the nearest-first walk over what it must drive (what an idealised online
+order needs).
 """
 from __future__ import annotations
 
@@ -78,10 +79,12 @@ def measure_world(seed: int | str, png_dir: str | None = None, max_time: float =
            'per_bound': {k: lengths.get(k, 0.0) / r['lower_bound'] * (
                r['path_length'] / total if total else 0.0) for k in PRIMITIVES}}
     if floor:
-        from coverage_pkg.algorithm1_floor import algorithm1_floor
+        from coverage_pkg.algorithm1_floor import algorithm1_floor, nearest_first_walk
         cfg = PaperConfig(**(config or {}))
         f = algorithm1_floor(world, cfg.radius, cfg.delta, cfg.view_margin)
         row['floor'] = f['floor'] / r['lower_bound']
+        w = nearest_first_walk(world, cfg.radius, cfg.delta, cfg.view_margin)
+        row['walk'] = w['walk'] / r['lower_bound']
     if png_dir:
         from coverage_pkg.figure import render_coverage
         Path(png_dir).mkdir(parents=True, exist_ok=True)
@@ -101,8 +104,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument('--max-sim-time', type=float, default=3000.0)
     ap.add_argument('--floor', action='store_true',
                     help='also the floor of Algorithm 1 on the true world '
-                    '(coverage_pkg/algorithm1_floor.py) as a multiple of the bound, and path / '
-                    'floor')
+                    '(coverage_pkg/algorithm1_floor.py) as a multiple of the bound, path / '
+                    'floor and the nearest-first walk as a multiple of the bound')
     ap.add_argument('--set', action='append', default=[], metavar='NAME=VALUE',
                     help="a PaperConfig field, e.g. 'circuit_sweeps=true', or 'rules=paper' "
                     '(repeatable; later ones override earlier ones)')
@@ -120,14 +123,14 @@ def main(argv: list[str] | None = None) -> int:
         rows = list(ex.map(measure_world, seeds, [args.png] * len(seeds),
                            [args.max_sim_time] * len(seeds), [config] * len(seeds),
                            [args.floor] * len(seeds)))
-    floor_head = ' floor/bound | path/floor |' if args.floor else ''
+    floor_head = ' floor/bound | path/floor | nearest-first/bound |' if args.floor else ''
     print('| world | state | covered | path/bound | ' + ' | '.join(PRIMITIVES) +
           ' | primitives | update median ms (CPU) | p99 ms (CPU) | sim s |' + floor_head)
-    print('|---' * (8 + len(PRIMITIVES) + 2 * args.floor) + '|')
+    print('|---' * (8 + len(PRIMITIVES) + 3 * args.floor) + '|')
     for r in rows:
         per = ' | '.join(f"{r['per_bound'][k]:.2f}" for k in PRIMITIVES)
-        floor_cells = f" {r['floor']:.2f} | {r['ratio'] / r['floor']:.2f} |" if args.floor \
-            else ''
+        floor_cells = f" {r['floor']:.2f} | {r['ratio'] / r['floor']:.2f} | " \
+            f"{r['walk']:.2f} |" if args.floor else ''
         print(f"| {r['world']} | {r['state']} | {100 * r['covered']:.2f} % | {r['ratio']:.2f} | "
               f"{per} | {100 * r['primitive']:.1f} % | {r['median_ms']:.2f} | "
               f"{r['p99_ms']:.2f} | {r['sim']:.0f} |{floor_cells}")
@@ -139,7 +142,8 @@ def main(argv: list[str] | None = None) -> int:
           f"{np.median([r['median_ms'] for r in rows]):.2f} | "
           f"{max(r['p99_ms'] for r in rows):.2f} | - |" +
           (f" {np.mean([r['floor'] for r in rows]):.2f} | "
-           f"{np.mean([r['ratio'] / r['floor'] for r in rows]):.2f} |" if args.floor else ''))
+           f"{np.mean([r['ratio'] / r['floor'] for r in rows]):.2f} | "
+           f"{np.mean([r['walk'] for r in rows]):.2f} |" if args.floor else ''))
     sys.stdout.flush()
     return 0
 

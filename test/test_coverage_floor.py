@@ -1,12 +1,12 @@
-"""The floor of Algorithm 1's path (coverage_pkg/algorithm1_floor.py) against hand-computed
-values, and the paper planner's path against it."""
+"""The floor of Algorithm 1's path and its nearest-first walk (coverage_pkg/algorithm1_floor.py)
+against hand-computed values, and the paper planner's path against the floor."""
 import math
 from pathlib import Path
 
 import pytest
 
 from coverage_pkg.algorithm1 import PaperConfig
-from coverage_pkg.algorithm1_floor import algorithm1_floor
+from coverage_pkg.algorithm1_floor import algorithm1_floor, nearest_first_walk
 from coverage_pkg.kinematic import run_kinematic
 from coverage_pkg.world import load_world, world_from_dict
 
@@ -100,3 +100,50 @@ def test_the_floor_does_not_depend_on_how_the_medial_axis_breaks_ties(tmp_path):
         gvd, ring = required_cells(cvs, 2.0, 0.25, rng=rng)
         lengths.append(sum(e[2] for e in _chains(gvd | ring, cvs.res)[1]))
     assert max(lengths) - min(lengths) < 0.01 * min(lengths)
+
+
+def test_the_nearest_first_walk_drives_either_arm_of_an_l_first():
+    """From the corner of an L the two arms are one vertex's edges: an online order cannot
+    tell which is shorter. The walk drives one out and back and ends in the other; over its
+    random tie-breaks the least walk is the floor's (the shorter arm twice) and the largest
+    drives the longer arm twice."""
+    world = world_from_dict({'name': 'l', 'boundary': [[0, 0], [11.4, 0], [11.4, 1.4],
+                                                       [1.4, 1.4], [1.4, 5.4], [0, 5.4]],
+                             'obstacles': [], 'start': [0.7, 0.7]})
+    w = nearest_first_walk(world)
+    f = algorithm1_floor(world)
+    up, along = 5.15 - TRIM - 0.7, 11.15 - TRIM - 0.7
+    assert w['required'] == pytest.approx(up + along, abs=0.4)
+    assert w['walk_min'] == pytest.approx(w['required'] + up, abs=0.5)
+    assert w['walk_max'] == pytest.approx(w['required'] + along, abs=0.5)
+    assert w['walk_min'] < w['walk'] < w['walk_max']
+    assert f['floor'] <= w['walk_min'] + 0.05
+
+
+@pytest.mark.parametrize('shape', ['dead_end', 'ring'])
+def test_the_nearest_first_walk_needs_no_more_than_the_floor_without_a_choice(shape):
+    """Where no order has a choice to make (a dead-end corridor entered at its end, a loop
+    round an obstacle) the nearest-first walk is the floor."""
+    if shape == 'dead_end':
+        world = world_from_dict({'name': 'dead_end', 'boundary': [[0, 0], [12, 0], [12, 1.4],
+                                                                  [0, 1.4]],
+                                 'obstacles': [], 'start': [1.0, 0.7]})
+    else:
+        world = world_from_dict({'name': 'ring', 'boundary': [[0, 0], [10, 0], [10, 10],
+                                                              [0, 10]],
+                                 'obstacles': [[[1.4, 1.4], [8.6, 1.4], [8.6, 8.6],
+                                                [1.4, 8.6]]],
+                                 'start': [5.0, 0.7]})
+    w = nearest_first_walk(world)
+    f = algorithm1_floor(world)
+    assert w['walk_max'] - w['walk_min'] < 0.05
+    assert w['walk'] == pytest.approx(f['floor'], abs=0.3)
+
+
+def test_the_nearest_first_walk_is_never_below_the_floor(tmp_path):
+    """The floor bounds every walk that drives the required set: the least of the
+    nearest-first walks on generated worlds is at or above it."""
+    from coverage_pkg.worldgen import write_worlds
+    for path in write_worlds(tmp_path, 3, seed=6000):
+        world = load_world(path)
+        assert algorithm1_floor(world)['floor'] <= nearest_first_walk(world)['walk_min'] + 0.05
