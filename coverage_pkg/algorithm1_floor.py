@@ -31,7 +31,8 @@ follow: it learns an edge when it stands at one of its ends, and always drives t
 edge it knows (ties between the edges of one vertex, whose lengths it cannot know, in a
 random order). It is an estimate of what Algorithm 1 needs with FindUncoveredNode's
 nearest-first choice, idealised: it senses every edge at once and drives the true shortest
-way to it.
+way to it. With ``circuits_first`` it keeps Algorithm 1's order in a vast cell: a curve
+D = delta, once reached, is driven round before the GVD edges that leave it.
 
 Laps, the way between disconnected pieces and anything the sensors make the robot do are not
 counted, so the planner's path can only be longer - except where the planner skips a stretch
@@ -131,10 +132,10 @@ def _trim_dead_ends(gvd, ring, res, reach):
     return keep
 
 
-def _chains(mask, res, extra=()):
+def _chains(mask, res, extra=(), middle=False):
     """Graph of the mask's cells: vertices where the degree is not 2 and the cells
     ``extra``, edges the chains between them with their simplified length. Returns (vertex
-    cells, [(a, b, length)])."""
+    cells, [(a, b, length)]; with ``middle``, [(a, b, length, the chain's middle cell)])."""
     cells = set(zip(*np.nonzero(mask)))
     nbrs = {k: list(_neighbours(mask, *k)) for k in cells}
     verts = {k for k, v in nbrs.items() if len(v) != 2} | (set(extra) & cells)
@@ -159,7 +160,8 @@ def _chains(mask, res, extra=()):
             for p, q in zip(chain[:-1], chain[1:]):
                 used.add((p, q))
                 used.add((q, p))
-            edges.append((a, chain[-1], _length(chain, res)))
+            edges.append((a, chain[-1], _length(chain, res)) +
+                         ((chain[len(chain) // 2],) if middle else ()))
     for k in cells:                       # closed curves without a vertex: a loop each
         if k in verts or any((k, n) in used for n in nbrs[k]):
             continue
@@ -170,7 +172,7 @@ def _chains(mask, res, extra=()):
         for p, q in zip(chain[:-1], chain[1:]):
             used.add((p, q))
             used.add((q, p))
-        edges.append((k, k, _length(chain, res)))
+        edges.append((k, k, _length(chain, res)) + ((chain[len(chain) // 2],) if middle else ()))
     return verts, edges
 
 
@@ -260,13 +262,17 @@ def algorithm1_floor(world: World, radius: float = 0.25, delta: float = 2.0,
 
 
 def nearest_first_walk(world: World, radius: float = 0.25, delta: float = 2.0,
-                       view_margin: float = 0.3, orders: int = 32) -> dict[str, object]:
+                       view_margin: float = 0.3, orders: int = 32,
+                       circuits_first: bool = False) -> dict[str, object]:
     """The path of a nearest-first online order over the required set of
     :func:`algorithm1_floor` (see the module doc). The walk goes from the start to the
     nearest required cell p (a vertex); at each step it drives the geodesic way to the
     nearest end of an undriven edge that touches a vertex it has reached, and then the
     whole edge. Edges of one vertex tie; ``orders`` seeded random tie-breaks are walked.
-    Returns the mean, least and largest walk (m), the required length and the bound."""
+    ``circuits_first``: Algorithm 1's order in a vast cell: a curve D = delta, once
+    reached, is driven round whole before any other edge (the circuit before the corners'
+    and doors' GVD edges that leave it). Returns the mean, least and largest walk (m), the
+    required length and the bound."""
     import random
     cvs = CoverableSet(world, radius, delta, 0.05)
     gvd, ring = required_cells(cvs, delta, radius, view_margin)
@@ -281,21 +287,27 @@ def nearest_first_walk(world: World, radius: float = 0.25, delta: float = 2.0,
                 'lower_bound': cvs.lower_bound_path()}
     p = tuple(int(i) for i in np.unravel_index(np.argmin(from_start), from_start.shape))
     lead = float(from_start[p])
-    verts, chains = _chains(required, cvs.res, extra=[p])
+    verts, chains = _chains(required, cvs.res, extra=[p], middle=True)
     verts = sorted(verts)
     index = {v: i for i, v in enumerate(verts)}
     dist = np.empty((len(verts), len(verts)))
     for i, v in enumerate(verts):
         _, cum = geodesic(passable, [v])
         dist[i] = [cum[w] * cvs.res for w in verts]
-    edges = [(index[a], index[b], length) for a, b, length in chains]
+    edges = [(index[a], index[b], length) for a, b, length, _ in chains]
+    circuit = _circuits(edges, [bool(ring[m] and not gvd[m]) for *_, m in chains]) \
+        if circuits_first else [None] * len(edges)
     walks = []
     for order in range(orders):
         rng = random.Random(order)
         tie = [rng.random() for _ in edges]
         todo, reached, here, walk = set(range(len(edges))), {index[p]}, index[p], lead
         while todo:
-            best = min(((dist[here, u], tie[k], k, u, w) for k in todo
+            # the circuit of a curve D = delta the walk stands on goes first, if undriven
+            going = {circuit[k] for k in todo if circuit[k] is not None and
+                     here in edges[k][:2]}
+            pool = [k for k in todo if circuit[k] in going] or todo
+            best = min(((dist[here, u], tie[k], k, u, w) for k in pool
                         for u, w in (edges[k][:2], edges[k][1::-1])
                         if u in reached and np.isfinite(dist[here, u])), default=None)
             if best is None:          # the rest lies beyond what the start can reach
@@ -309,3 +321,19 @@ def nearest_first_walk(world: World, radius: float = 0.25, delta: float = 2.0,
     return {'walk': float(np.mean(walks)), 'walk_min': float(min(walks)),
             'walk_max': float(max(walks)), 'required': sum(e[2] for e in edges),
             'lower_bound': cvs.lower_bound_path()}
+
+
+def _circuits(edges, on_curve):
+    """The curve D = delta each edge lies on (an index per connected set of curve edges;
+    None for a GVD edge)."""
+    parent = {}
+
+    def root(v):
+        while parent.setdefault(v, v) != v:
+            v = parent[v]
+        return v
+
+    for (a, b, _), c in zip(edges, on_curve):
+        if c:
+            parent[root(a)] = root(b)
+    return [root(a) if c else None for (a, _, _), c in zip(edges, on_curve)]

@@ -147,3 +147,18 @@ def test_the_nearest_first_walk_is_never_below_the_floor(tmp_path):
     for path in write_worlds(tmp_path, 3, seed=6000):
         world = load_world(path)
         assert algorithm1_floor(world)['floor'] <= nearest_first_walk(world)['walk_min'] + 0.05
+
+
+def test_circuits_first_drives_the_curve_round_before_the_corners():
+    """In a 10 x 8 m room (the circle D = delta of 20 m, a 0.77 m corner edge at each of its
+    corners) the nearest-first walk can take each corner's edge as it passes its cusp; with
+    the circuit first, as Algorithm 1 covers a vast cell, it comes back round to the four
+    cusps after the circle: about a second circle, less a side."""
+    world = world_from_dict({'name': 'room', 'boundary': [[0, 0], [10, 0], [10, 8], [0, 8]],
+                             'obstacles': [], 'start': [5.0, 4.0]})
+    any_order = nearest_first_walk(world)
+    circuits = nearest_first_walk(world, circuits_first=True)
+    assert circuits['walk_max'] - circuits['walk_min'] < 0.05     # no choice left to chance
+    assert 2.0 + 20.0 + 14.0 <= circuits['walk'] <= 2.0 + 20.0 + 24.0
+    assert circuits['walk'] >= any_order['walk_min'] + 12.0
+    assert any_order['walk_min'] == pytest.approx(algorithm1_floor(world)['floor'], abs=0.6)
