@@ -273,7 +273,16 @@ def nearest_first_walk(world: World, radius: float = 0.25, delta: float = 2.0,
     reached, is driven round whole before any other edge (the circuit before the corners'
     and doors' GVD edges that leave it). Returns the mean, least and largest walk (m), the
     required length and the bound."""
-    import random
+    walks = nearest_first_walks(world, radius, delta, view_margin, orders)
+    key = 'circuits_first' if circuits_first else 'any_order'
+    return {**walks[key], 'required': walks['required'], 'lower_bound': walks['lower_bound']}
+
+
+def nearest_first_walks(world: World, radius: float = 0.25, delta: float = 2.0,
+                        view_margin: float = 0.3, orders: int = 32) -> dict[str, object]:
+    """Both orders of :func:`nearest_first_walk` on one graph (its geodesics are the cost):
+    ``any_order`` and ``circuits_first``, each the mean, least and largest walk (m); the
+    required length and the bound."""
     cvs = CoverableSet(world, radius, delta, 0.05)
     gvd, ring = required_cells(cvs, delta, radius, view_margin)
     required = gvd | ring
@@ -283,7 +292,8 @@ def nearest_first_walk(world: World, radius: float = 0.25, delta: float = 2.0,
     _, from_start = geodesic(passable, [start])
     from_start = np.where(required, from_start * cvs.res, np.inf)
     if not np.isfinite(from_start).any():
-        return {'walk': 0.0, 'walk_min': 0.0, 'walk_max': 0.0, 'required': 0.0,
+        none = {'walk': 0.0, 'walk_min': 0.0, 'walk_max': 0.0}
+        return {'any_order': none, 'circuits_first': none, 'required': 0.0,
                 'lower_bound': cvs.lower_bound_path()}
     p = tuple(int(i) for i in np.unravel_index(np.argmin(from_start), from_start.shape))
     lead = float(from_start[p])
@@ -295,32 +305,38 @@ def nearest_first_walk(world: World, radius: float = 0.25, delta: float = 2.0,
         _, cum = geodesic(passable, [v])
         dist[i] = [cum[w] * cvs.res for w in verts]
     edges = [(index[a], index[b], length) for a, b, length, _ in chains]
-    circuit = _circuits(edges, [bool(ring[m] and not gvd[m]) for *_, m in chains]) \
-        if circuits_first else [None] * len(edges)
-    walks = []
-    for order in range(orders):
-        rng = random.Random(order)
-        tie = [rng.random() for _ in edges]
-        todo, reached, here, walk = set(range(len(edges))), {index[p]}, index[p], lead
-        while todo:
-            # the circuit of a curve D = delta the walk stands on goes first, if undriven
-            going = {circuit[k] for k in todo if circuit[k] is not None and
-                     here in edges[k][:2]}
-            pool = [k for k in todo if circuit[k] in going] or todo
-            best = min(((dist[here, u], tie[k], k, u, w) for k in pool
-                        for u, w in (edges[k][:2], edges[k][1::-1])
-                        if u in reached and np.isfinite(dist[here, u])), default=None)
-            if best is None:          # the rest lies beyond what the start can reach
-                break
-            way, _, k, _, w = best
-            walk += way + edges[k][2]
-            todo.discard(k)
-            reached.add(w)
-            here = w
-        walks.append(walk)
-    return {'walk': float(np.mean(walks)), 'walk_min': float(min(walks)),
-            'walk_max': float(max(walks)), 'required': sum(e[2] for e in edges),
-            'lower_bound': cvs.lower_bound_path()}
+    circuit = _circuits(edges, [bool(ring[m] and not gvd[m]) for *_, m in chains])
+    out = {}
+    for key, labels in (('any_order', [None] * len(edges)), ('circuits_first', circuit)):
+        walks = [lead + _walk(edges, dist, labels, index[p], order) for order in range(orders)]
+        out[key] = {'walk': float(np.mean(walks)), 'walk_min': float(min(walks)),
+                    'walk_max': float(max(walks))}
+    return {**out, 'required': sum(e[2] for e in edges), 'lower_bound': cvs.lower_bound_path()}
+
+
+def _walk(edges, dist, circuit, start, order):
+    """One nearest-first walk from vertex ``start`` (ties broken by the seed ``order``);
+    ``circuit``: each edge's curve D = delta, driven round first once reached (None: a GVD
+    edge, or no such order)."""
+    import random
+    rng = random.Random(order)
+    tie = [rng.random() for _ in edges]
+    todo, reached, here, walk = set(range(len(edges))), {start}, start, 0.0
+    while todo:
+        # the circuit of a curve D = delta the walk stands on goes first, if undriven
+        going = {circuit[k] for k in todo if circuit[k] is not None and here in edges[k][:2]}
+        pool = [k for k in todo if circuit[k] in going] or todo
+        best = min(((dist[here, u], tie[k], k, u, w) for k in pool
+                    for u, w in (edges[k][:2], edges[k][1::-1])
+                    if u in reached and np.isfinite(dist[here, u])), default=None)
+        if best is None:          # the rest lies beyond what the start can reach
+            break
+        way, _, k, _, w = best
+        walk += way + edges[k][2]
+        todo.discard(k)
+        reached.add(w)
+        here = w
+    return walk
 
 
 def _circuits(edges, on_curve):

@@ -80,15 +80,13 @@ def measure_world(seed: int | str, png_dir: str | None = None, max_time: float =
            'per_bound': {k: lengths.get(k, 0.0) / r['lower_bound'] * (
                r['path_length'] / total if total else 0.0) for k in PRIMITIVES}}
     if floor:
-        from coverage_pkg.algorithm1_floor import algorithm1_floor, nearest_first_walk
+        from coverage_pkg.algorithm1_floor import algorithm1_floor, nearest_first_walks
         cfg = PaperConfig(**(config or {}))
         f = algorithm1_floor(world, cfg.radius, cfg.delta, cfg.view_margin)
         row['floor'] = f['floor'] / r['lower_bound']
-        w = nearest_first_walk(world, cfg.radius, cfg.delta, cfg.view_margin)
-        row['walk'] = w['walk'] / r['lower_bound']
-        w = nearest_first_walk(world, cfg.radius, cfg.delta, cfg.view_margin,
-                               circuits_first=True)
-        row['walk_circuits'] = w['walk'] / r['lower_bound']
+        w = nearest_first_walks(world, cfg.radius, cfg.delta, cfg.view_margin)
+        row['walk'] = w['any_order']['walk'] / r['lower_bound']
+        row['walk_circuits'] = w['circuits_first']['walk'] / r['lower_bound']
     if png_dir:
         from coverage_pkg.figure import render_coverage
         Path(png_dir).mkdir(parents=True, exist_ok=True)
