@@ -74,7 +74,8 @@ def parse_without(value: str | Iterable[str] | None) -> tuple[str, ...]:
 MODE_FIELDS = ('handover', 'merge_continues', 'circuit_sweeps', 'cusp_detour', 'circuit_join',
                'meet_scan', 'end_scan', 'sliver_openings', 'cusp_meet', 'meet_margin',
                'circuit_same_way', 'circuit_same_side', 'meet_side_pair', 'way_come_held',
-               'meet_own_obstacles', 'traced_way', 'meet_surround')
+               'meet_own_obstacles', 'traced_way', 'meet_surround', 'cusp_edge_traced',
+               'cusp_meet_gap')
 
 #: ``rules=paper``: each sensing rule of ours that is on in the default, set to the paper's
 #: reading (the rules of ours that are off in the default are off here too). What remains is
@@ -246,6 +247,18 @@ class PaperConfig:
     #                                 edge; True loses a room in Algorithm 1's pseudocode
     #                                 order: a meet point missed by the first trace of an
     #                                 edge is not sensed on a second)
+    cusp_edge_traced: bool = False  # ours: a GVD branch that ends at a cusp sensed before
+    #                                 by a circuit, along that cusp's edge, has traced the
+    #                                 cusp's narrow node's edge from its other end: the two
+    #                                 narrow nodes are one and the cusp's branch ends traced
+    #                                 (PaperPlanner._cusp_edge_traced) (False: the cusp's
+    #                                 node is covered on its own, its branch traced until it
+    #                                 joins the traced edge, then merged)
+    cusp_meet_gap: bool = False     # ours, with cusp_meet: the cusp's own branch leaves
+    #                                 along the gap between its three closest obstacles
+    #                                 nearest its bearing (False: along the bisector of its
+    #                                 two closest obstacles, which can point at the wall
+    #                                 between a corner's gap and a door's beside it)
     meet_surround: bool = False     # True: a meet point is taken only where its three
     #                                 closest obstacles surround it (no gap over 190 deg
     #                                 between their bearings) (False, as the paper's

@@ -73,8 +73,10 @@ class CreateNode:
         wider than half a turn: that gap faces the vast cell; each other gap is a GVD edge
         into the narrow region, of the narrow node whose cusp edge this is. The edges known
         there are the gaps nearest them: the cusp's own untraced branch (along the bisector
-        of its two closest obstacles) and a branch traced into the cusp (the way it came);
-        every other gap becomes a branch (a meet event). Read once per cusp edge, from the
+        of its two closest obstacles; with ``cusp_meet_gap``, ours, it then leaves along
+        that gap, since the bisector can point at the wall between a corner's gap and a
+        door's beside it) and a branch traced into the cusp (the way it came); every other
+        gap becomes a branch (a meet event). Read once per cusp edge, from the
         vast node's side (covered, or handed over to where a traced branch ends). In a small
         vast cell whose corners' cusps lie within a step of one another, a gap added here
         can be another cusp's edge; such a branch ends untraced
@@ -104,6 +106,13 @@ class CreateNode:
         if not known:
             return
         self._cusp_meets.add(key)
+        for b in own:                    # cusp_meet_gap: its own edge is the nearest gap
+            if self.cfg.cusp_meet_gap and gaps and b.heading is not None:
+                k = math.atan2(b.heading[1], b.heading[0])
+                g = min(gaps, key=lambda g: abs(math.remainder(g - k, 2 * math.pi)))
+                b.heading = (math.cos(g), math.sin(g))
+        known = [math.atan2(b.heading[1], b.heading[0]) for b in own if b.heading is not None]
+        known += [math.atan2(-b.end_heading[1], -b.end_heading[0]) for b in came]
         for k in known:                  # the edges known at the cusp: the nearest gaps
             if gaps:
                 gaps.remove(min(gaps, key=lambda g: abs(math.remainder(g - k, 2 * math.pi))))
@@ -245,6 +254,47 @@ class CreateNode:
                  and math.dist(self.events[m.created_by][2:4], xy) < near}
         for v in sorted(vast):
             self._add_edge(v, n.id, xy, f'known cusp: vast node {v} joins narrow node {n.id}')
+
+    def _cusp_edge_traced(self, br):
+        """Branch ``br`` of the narrow node being traced has ended at a cusp that a vast
+        node's circuit sensed before, and that cusp created a narrow node of its own: its
+        GVD edge is the one just traced, from its other end, so the two narrow nodes are one
+        narrow cell (a cusp joins one vast cell and one narrow cell, Section IV-C) and the
+        cusp's own branch is traced. The cusp is the one within ``same_event`` of the
+        branch's end whose bearing into its narrow cell points, within 45 degrees and
+        nearest, at where the robot was 0.8 m of path before the end: the edge it came
+        along. (The heading at the end does not tell: near a cusp the GVD bends, and the
+        cusps of a small vast cell lie a step apart, each on its own edge.) The merged node
+        keeps being covered. Switch ``cusp_edge_traced`` (ours, off by default)."""
+        n = self.nodes[self.current] if self.current is not None else None
+        k = self.paths.back_index(0.8)
+        if not self.cfg.cusp_edge_traced or n is None or n.kind != 'narrow' or \
+                br.end_xy is None or k is None:
+            return
+        came, near, best = self.paths.xy[k], self.cfg.same_event, None
+        for _, w, c in self.edges:
+            m = self.nodes[self.same_node(w)]
+            into = self._cusp_dirs.get((round(c[0], 3), round(c[1], 3)))
+            if m.id == self.same_node(n.id) or m.kind != 'narrow' or into is None or \
+                    math.dist(c, br.end_xy) >= near or math.dist(c, came) < 0.5:
+                continue
+            off = abs(math.remainder(math.atan2(came[1] - c[1], came[0] - c[0]) - into,
+                                     2 * math.pi))
+            if off < math.radians(45) and (best is None or off < best[0]):
+                best = (off, m, c, into)
+        if best is None:
+            return
+        _, m, c, into = best
+        for b in m.branches:            # the cusp's own branch: leaves c along ``into``
+            if b.end is None and math.dist(b.start, c) < near and (
+                    b.heading is None or
+                    b.heading[0] * math.cos(into) + b.heading[1] * math.sin(into) > 0.7):
+                b.end, b.end_xy = 'traced', tuple(b.start)
+                self._record(self.t_sweep or 0.0, 'branch_end', b.start,
+                             'GVD branch ends: its cusp edge is traced from its other end')
+        n = self._merge_narrow(self.nodes[self.same_node(n.id)], m,
+                               "its cusp's GVD edge is that node's, traced into it")
+        self.current = n.id
 
     def same_node(self, i: int) -> int:
         """The node that node ``i`` was found to be (a vast node whose cusp lies on another

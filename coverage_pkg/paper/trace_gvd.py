@@ -282,7 +282,15 @@ class TraceGVD:
         m = self.nodes[self.same_node(owner)]
         if m is n or m.kind != 'narrow' or n.kind != 'narrow':
             return None
-        lo, hi = (m, n) if m.id < n.id else (n, m)
+        lo = self._merge_narrow(m, n, "its GVD trace joined that node's edge")
+        self.current = lo.id if self.cfg.merge_continues else None
+        return None
+
+    def _merge_narrow(self, a, b, why):
+        """Narrow nodes ``a`` and ``b`` are one narrow cell: the later one (higher id)
+        becomes the earlier, which takes its branches, meet points and edges and is
+        uncovered while it has open branches. Returns the earlier node."""
+        lo, hi = (a, b) if a.id < b.id else (b, a)
         hi.merged_into, hi.covered = lo.id, True
         lo.branches.extend(hi.branches)
         lo.meets.extend(hi.meets)
@@ -290,11 +298,9 @@ class TraceGVD:
         self.edges[:] = [(v, lo.id if w == hi.id else w, c) for v, w, c in self.edges]
         self._dedupe_edges()
         hi.closed_by = self._record(self.t_sweep, 'same_cell', hi.anchor,
-                                    f'narrow node {hi.id} is narrow node {lo.id}: its GVD '
-                                    "trace joined that node's edge")
+                                    f'narrow node {hi.id} is narrow node {lo.id}: {why}')
         lo.covered = False
-        self.current = lo.id if self.cfg.merge_continues else None
-        return None
+        return lo
 
     def _cusp_ahead(self, heading):
         """D has risen above delta on the GVD edge (Fig. 11): the robot has just passed its
@@ -707,4 +713,6 @@ class TraceGVD:
             br.end_heading = self.task.get('heading') or br.heading
             self._record(self.t_sweep, 'branch_end', self.pose, f'GVD branch ends: {how}')
         self.task, self.mode = {}, None
+        if how == 'cusp' and br is not None:
+            self._cusp_edge_traced(br)
         return None
