@@ -75,7 +75,7 @@ MODE_FIELDS = ('handover', 'merge_continues', 'circuit_sweeps', 'cusp_detour', '
                'meet_scan', 'end_scan', 'sliver_openings', 'cusp_meet', 'meet_margin',
                'circuit_same_way', 'circuit_same_side', 'meet_side_pair', 'way_come_held',
                'meet_own_obstacles', 'traced_way', 'meet_surround', 'cusp_edge_traced',
-               'cusp_meet_gap')
+               'cusp_meet_gap', 'pinch_ends_cell')
 
 #: ``rules=paper``: each sensing rule of ours that is on in the default, set to the paper's
 #: reading (the rules of ours that are off in the default are off here too). What remains is
@@ -259,6 +259,12 @@ class PaperConfig:
     #                                 nearest its bearing (False: along the bisector of its
     #                                 two closest obstacles, which can point at the wall
     #                                 between a corner's gap and a door's beside it)
+    pinch_ends_cell: bool = False   # ours: a Morse cell ends where the move between laps
+    #                                 (or to the cell's left side) finds two obstacles
+    #                                 either side nearer than delta (a cusp passed into
+    #                                 narrow space; MorseDecompCoverage._pinched) (False:
+    #                                 the move follows the boundary at D = delta on along a
+    #                                 corridor whose wall runs on from the room's)
     meet_surround: bool = False     # True: a meet point is taken only where its three
     #                                 closest obstacles surround it (no gap over 190 deg
     #                                 between their bearings) (False, as the paper's

@@ -51,6 +51,10 @@ class MorseDecompCoverage:
             else:                                  # a successor: its first lap is ahead
                 tk.update(phase='advance', x0=self.pose[0], first=True)
             self.mode = 'boundary'
+        if tk['phase'] in ('find_left', 'advance') and self.cfg.pinch_ends_cell and \
+                self._pinched():
+            return self._close_cell(n, cell, None, 'the slice pinches: two obstacles either '
+                                    'side nearer than delta')
         if tk['phase'] == 'find_left':             # to the cell's opening side
             if self.echo(math.pi if s > 0 else 0.0) > self.det:
                 return self._boundary_velocity(-s)
@@ -249,6 +253,17 @@ class MorseDecompCoverage:
             c = self.cfg.slice_cone
             self.task['profile'].append((self.pose[1], self.echo(ahead, c),
                                          self.echo(ahead + math.pi, c)))
+
+    def _pinched(self):
+        """The two closest obstacles lie either side of the robot (over 120 degrees apart),
+        both nearer than delta by over half the event tolerance: a disk of radius delta does
+        not fit here, so the vast cell's slice has ended (the robot moving along the boundary
+        between laps has passed a cusp into narrow space)."""
+        m = self.gvd_mins
+        if len(m) < 2:
+            return False
+        (_, a1), (d2, a2) = m[:2]
+        return d2 < self.det - self.cfg.event_tolerance / 2 and math.cos(a1 - a2) < -0.5
 
     def _lap_velocity(self, x_col, direction):
         """A straight lap along the slice x = x_col (the holonomic base keeps the column)."""
