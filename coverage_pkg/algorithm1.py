@@ -262,9 +262,12 @@ class PaperConfig:
     pinch_ends_cell: bool = False   # ours: a Morse cell ends where the move between laps
     #                                 (or to the cell's left side) finds two obstacles
     #                                 either side nearer than delta (a cusp passed into
-    #                                 narrow space; MorseDecompCoverage._pinched) (False:
-    #                                 the move follows the boundary at D = delta on along a
-    #                                 corridor whose wall runs on from the room's)
+    #                                 narrow space; MorseDecompCoverage._pinched), and a
+    #                                 lap where the delta disk touches a corner ahead
+    #                                 (._touches_ahead) (False: the move follows the
+    #                                 boundary at D = delta on along a corridor whose wall
+    #                                 runs on from the room's; a lap runs while the echo
+    #                                 straight ahead is beyond delta)
     meet_surround: bool = False     # True: a meet point is taken only where its three
     #                                 closest obstacles surround it (no gap over 190 deg
     #                                 between their bearings) (False, as the paper's

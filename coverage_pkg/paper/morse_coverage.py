@@ -61,9 +61,11 @@ class MorseDecompCoverage:
             tk.update(phase='advance', x0=self.pose[0], first=True)   # the circuit lapped it
             return None
         if tk['phase'] in ('lap_first', 'lap'):
-            if self.echo(math.pi / 2 * tk['dir']) > self.det:
+            touch = self.cfg.pinch_ends_cell and self._touches_ahead(tk['dir'])
+            if self.echo(math.pi / 2 * tk['dir']) > self.det and not touch:
                 return self._lap_velocity(tk['x'], tk['dir'])
-            self._island(n, cell, tk['dir'])
+            if self.echo(math.pi / 2 * tk['dir']) <= self.det + self.cfg.event_tolerance:
+                self._island(n, cell, tk['dir'])
             if tk['phase'] == 'lap_first':         # one end of the slice reached: lap it
                 tk.update(phase='lap', dir=-tk['dir'])
                 self._profile_reset()
@@ -264,6 +266,17 @@ class MorseDecompCoverage:
             return False
         (_, a1), (d2, a2) = m[:2]
         return d2 < self.det - self.cfg.event_tolerance / 2 and math.cos(a1 - a2) < -0.5
+
+    def _touches_ahead(self, direction):
+        """With ``pinch_ends_cell``: the disk of radius delta about the robot, lapping along
+        +-y (``direction``), touches an obstacle ahead of it: the closest echo is nearer than
+        delta by over half the event tolerance, within 60 degrees of the lap's direction (a
+        corner passed beside the lap; a wall along the lap lies 90 degrees off)."""
+        if not self.mins:
+            return False
+        d, a = self.mins[0]
+        return d < self.det - self.cfg.event_tolerance / 2 and \
+            math.cos(a - math.pi / 2 * direction) > 0.5
 
     def _lap_velocity(self, x_col, direction):
         """A straight lap along the slice x = x_col (the holonomic base keeps the column)."""
