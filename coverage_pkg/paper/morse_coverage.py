@@ -61,10 +61,11 @@ class MorseDecompCoverage:
             tk.update(phase='advance', x0=self.pose[0], first=True)   # the circuit lapped it
             return None
         if tk['phase'] in ('lap_first', 'lap'):
+            ahead = self.echo(math.pi / 2 * tk['dir'])
             touch = self.cfg.pinch_ends_cell and self._touches_ahead(tk['dir'])
-            if self.echo(math.pi / 2 * tk['dir']) > self.det and not touch:
+            if ahead > self.det and not touch:
                 return self._lap_velocity(tk['x'], tk['dir'])
-            if self.echo(math.pi / 2 * tk['dir']) <= self.det + self.cfg.event_tolerance:
+            if ahead <= self.det + self.cfg.event_tolerance:   # an obstacle ahead, not a touch
                 self._island(n, cell, tk['dir'])
             if tk['phase'] == 'lap_first':         # one end of the slice reached: lap it
                 tk.update(phase='lap', dir=-tk['dir'])

@@ -101,18 +101,16 @@ class CreateNode:
         own = [b for b in m.branches if b.end is None and math.dist(b.start, c) < near]
         came = [b for b in m.branches if b.end == 'cusp' and b.end_xy is not None and
                 b.end_heading is not None and math.dist(b.end_xy, xy) < near]
-        known = [math.atan2(b.heading[1], b.heading[0]) for b in own if b.heading is not None]
-        known += [math.atan2(-b.end_heading[1], -b.end_heading[0]) for b in came]
-        if not known:
-            return
-        self._cusp_meets.add(key)
         for b in own:                    # cusp_meet_gap: its own edge is the nearest gap
-            if self.cfg.cusp_meet_gap and gaps and b.heading is not None:
+            if self.cfg.cusp_meet_gap and b.heading is not None:
                 k = math.atan2(b.heading[1], b.heading[0])
                 g = min(gaps, key=lambda g: abs(math.remainder(g - k, 2 * math.pi)))
                 b.heading = (math.cos(g), math.sin(g))
         known = [math.atan2(b.heading[1], b.heading[0]) for b in own if b.heading is not None]
         known += [math.atan2(-b.end_heading[1], -b.end_heading[0]) for b in came]
+        if not known:
+            return
+        self._cusp_meets.add(key)
         for k in known:                  # the edges known at the cusp: the nearest gaps
             if gaps:
                 gaps.remove(min(gaps, key=lambda g: abs(math.remainder(g - k, 2 * math.pi))))
@@ -267,9 +265,11 @@ class CreateNode:
         cusps of a small vast cell lie a step apart, each on its own edge.) The merged node
         keeps being covered. Switch ``cusp_edge_traced`` (ours, off by default)."""
         n = self.nodes[self.current] if self.current is not None else None
-        k = self.paths.back_index(0.8)
         if not self.cfg.cusp_edge_traced or n is None or n.kind != 'narrow' or \
-                br.end_xy is None or k is None:
+                br.end_xy is None:
+            return
+        k = self.paths.back_index(0.8)
+        if k is None:
             return
         came, near, best = self.paths.xy[k], self.cfg.same_event, None
         for _, w, c in self.edges:
