@@ -75,7 +75,7 @@ MODE_FIELDS = ('handover', 'merge_continues', 'circuit_sweeps', 'cusp_detour', '
                'meet_scan', 'end_scan', 'sliver_openings', 'cusp_meet', 'meet_margin',
                'circuit_same_way', 'circuit_same_side', 'meet_side_pair', 'way_come_held',
                'meet_own_obstacles', 'traced_way', 'meet_surround', 'cusp_edge_traced',
-               'cusp_meet_gap', 'pinch_ends_cell')
+               'cusp_meet_gap', 'pinch_ends_cell', 'fork_at_meet')
 
 #: ``rules=paper``: each sensing rule of ours that is on in the default, set to the paper's
 #: reading (the rules of ours that are off in the default are off here too). What remains is
@@ -268,6 +268,15 @@ class PaperConfig:
     #                                 boundary at D = delta on along a corridor whose wall
     #                                 runs on from the room's; a lap runs while the echo
     #                                 straight ahead is beyond delta)
+    fork_at_meet: bool = False      # ours: two peaks of a meet point's scan, one's upper
+    #                                 half holding the other's top, are two GVD edges where
+    #                                 the obstacle between their tops lies within rho + 2
+    #                                 same_event of the meet point: the edge between them
+    #                                 forks within same_event of it, where the fork would be
+    #                                 taken for this meet point (a room about 2 delta
+    #                                 square entered through a door: its far corners)
+    #                                 (TraceGVD._fork_here) (False: one edge, along the
+    #                                 middle of their joint span)
     meet_surround: bool = False     # True: a meet point is taken only where its three
     #                                 closest obstacles surround it (no gap over 190 deg
     #                                 between their bearings) (False, as the paper's

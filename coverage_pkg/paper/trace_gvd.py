@@ -549,9 +549,11 @@ class TraceGVD:
             back = near[2]              # the one peak the robot came along
         held = gap or (self.cfg.way_come_held and near is not None and
                        self._off_span(back, near[0], near[1]) == 0.0)
+        rho = scan.get('rho')
         out = self._openings(ang, rng, [back], self.det,
-                             self._meet_obstacles(ang, rng, scan['xy'], scan.get('rho')),
-                             held_first=held, found=found)
+                             self._meet_obstacles(ang, rng, scan['xy'], rho),
+                             held_first=held, found=found,
+                             meet=None if rho is None else (*scan['xy'], rho))
         if not out:
             return
         a = math.atan2(head[1], head[0])
@@ -615,7 +617,7 @@ class TraceGVD:
         return hit & (np.hypot(ex, ey) <= rho + self.cfg.event_tolerance)
 
     def _openings(self, angles, ranges, exclude, beyond, close=None, held_first=False,
-                  found=None):
+                  found=None, meet=None):
         """Bearings of the GVD edges leaving the place a scan was taken from: the peaks of the
         range over bearing (a gap between two closest obstacles) reaching beyond ``beyond``
         and standing out by at least the event tolerance from the dips on either side (echo
@@ -632,9 +634,13 @@ class TraceGVD:
         either part points at a jamb, the middle of the whole at the bisector of the jambs;
         the range of a wide opening seen past an obstacle's edge also peaks just beyond that
         edge, a narrow peak at the wide one's side whose middle points at the obstacle.
-        With ``held_first``, where some peak's upper half holds a bearing of ``exclude``, only
-        those peaks, and the peaks one edge with them by the first test, are the way come.
-        ``found``: :func:`coverage_pkg.gvd.range_peaks` of these echoes, if the caller has it."""
+        With ``fork_at_meet`` (ours, off) two peaks of a meet point's scan that the first test
+        would join are two edges where their fork lies within ``same_event`` of the meet
+        point (:meth:`_fork_here`). With ``held_first``, where some peak's upper half holds a
+        bearing of ``exclude``, only those peaks, and the peaks one edge with them by the
+        first test, are the way come.
+        ``found``: :func:`coverage_pkg.gvd.range_peaks` of these echoes, if the caller has it.
+        ``meet``: (x, y, rho) of the meet point the scan was taken on, for ``fork_at_meet``."""
         order, ang, r, peaks = found or gvdmod.range_peaks(angles, ranges, beyond,
                                                            self.cfg.event_tolerance)
         sep = r <= beyond if close is None else (r <= beyond) | np.asarray(close)[order]
@@ -656,6 +662,12 @@ class TraceGVD:
             if came(lo, hi, top, mid):
                 continue
             held_top = [q for q in kept if inside(top, q[2], q[3]) or inside(q[1], lo, hi)]
+            if held_top and meet is not None and self.cfg.fork_at_meet and \
+                    self._fork_here(ang, r, top, held_top[0][1], meet):
+                q = held_top[0]          # each edge of the fork leaves along its peak's top
+                q[0], q[2], q[3] = q[1], q[1], q[1]
+                kept.append([top, top, top, top])
+                continue
             if held_top:
                 if self.join_held and not self.cfg.meet_surround:
                     self._join_opening(held_top[0], lo, hi)
@@ -692,6 +704,28 @@ class TraceGVD:
     def _holds(x, lo, hi):
         """Bearing ``x`` lies in the span from ``lo`` anticlockwise to ``hi``."""
         return math.remainder(x - lo, 2 * math.pi) % (2 * math.pi) <= hi - lo
+
+    def _fork_here(self, ang, r, top, other, meet):
+        """``fork_at_meet`` (ours): on the scan of meet point ``meet`` (x, y, rho), the peaks
+        topping at bearings ``top`` and ``other`` lead along two GVD edges. The edge along
+        their joint span runs between the two obstacles either side of it until the obstacle
+        between the tops (the echo between them, the shorter way round, nearest the meet
+        point, at ``dip`` from it) is as near as they are: about (dip - rho) / 2 out it forks
+        into one edge per top. Within ``same_event`` of the meet point that fork would be
+        taken for the meet point itself and never sensed (a room about 2 delta square
+        entered through its wall's middle: the edges into its two far corners), so both
+        edges leave here. Beyond, the robot senses the fork where it lies (a far wall's
+        corners seen through a door)."""
+        span = math.remainder(other - top, 2 * math.pi)
+        rel = np.remainder(ang - top, 2 * math.pi) if span > 0 else \
+            np.remainder(top - ang, 2 * math.pi)
+        hit = np.isfinite(r) & (r > 0) & (r < self.max_range - 1e-6)
+        between = (rel > 1e-6) & (rel < abs(span) - 1e-6) & hit
+        if not between.any():
+            return False
+        ex = self.pose[0] + r[between] * np.cos(ang[between]) - meet[0]
+        ey = self.pose[1] + r[between] * np.sin(ang[between]) - meet[1]
+        return (float(np.hypot(ex, ey).min()) - meet[2]) / 2.0 < self.cfg.same_event
 
     @staticmethod
     def _one_opening(sep, ang, b, o):
