@@ -96,12 +96,13 @@ def test_a_meet_point_reached_off_a_curved_path_keeps_the_corridors_other_way(mo
     first = PaperPlanner._openings
 
     def within_60_of_the_way_back(self, angles, ranges, exclude, beyond, close=None,
-                                  held_first=False, found=None):
+                                  held_first=False, found=None, meet=None):
         if close is None:                 # not a meet point's scan
-            return first(self, angles, ranges, exclude, beyond, close, held_first, found)
+            return first(self, angles, ranges, exclude, beyond, close, held_first, found,
+                         meet)
         head = np.asarray(self.task.get('heading') or self.task['branch'].heading)
         return first(self, angles, ranges, [self._way_back(head)], beyond, close, False,
-                     found)
+                     found, meet)
 
     monkeypatch.setattr(PaperPlanner, '_openings', within_60_of_the_way_back)
     off = run_kinematic(world_from_dict(ROOM_OVER_CORRIDOR), cfg, max_time=3000)
@@ -132,13 +133,13 @@ def test_the_arm_beside_a_corners_way_back_is_a_gap_of_the_dead_end_scan(monkeyp
     first = PaperPlanner._openings
 
     def one_sweep_rule(self, angles, ranges, exclude, beyond, close=None, held_first=False,
-                       found=None):
+                       found=None, meet=None):
         if close is None and held_first:  # a dead end's gaps: held first only if curved
             head = self.task['heading']
             peaks = (found or gvdmod.range_peaks(angles, ranges, beyond,
                                                  self.cfg.event_tolerance))[3]
             held_first = self._curved_end(math.atan2(-head[1], -head[0]), peaks)
-        return first(self, angles, ranges, exclude, beyond, close, held_first, found)
+        return first(self, angles, ranges, exclude, beyond, close, held_first, found, meet)
 
     monkeypatch.setattr(PaperPlanner, '_openings', one_sweep_rule)
     off = run_kinematic(world_from_dict(L_HALL), cfg, max_time=3000)
