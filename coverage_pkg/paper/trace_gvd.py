@@ -612,9 +612,13 @@ class TraceGVD:
         ang = np.asarray(angles, dtype=float)
         r = np.asarray(ranges, dtype=float)
         hit = np.isfinite(r) & (r < self.max_range - 1e-6)
-        ex = self.pose[0] + np.where(hit, r, 0.0) * np.cos(ang) - xy[0]
-        ey = self.pose[1] + np.where(hit, r, 0.0) * np.sin(ang) - xy[1]
-        return hit & (np.hypot(ex, ey) <= rho + self.cfg.event_tolerance)
+        return hit & (self._echo_dist(ang, np.where(hit, r, 0.0), xy) <=
+                      rho + self.cfg.event_tolerance)
+
+    def _echo_dist(self, ang, r, xy):
+        """Distance from ``xy`` of each echo (bearing, range) of a sweep taken here."""
+        return np.hypot(self.pose[0] + r * np.cos(ang) - xy[0],
+                        self.pose[1] + r * np.sin(ang) - xy[1])
 
     def _openings(self, angles, ranges, exclude, beyond, close=None, held_first=False,
                   found=None, meet=None):
@@ -716,16 +720,21 @@ class TraceGVD:
         entered through its wall's middle: the edges into its two far corners), so both
         edges leave here. Beyond, the robot senses the fork where it lies (a far wall's
         corners seen through a door)."""
-        span = math.remainder(other - top, 2 * math.pi)
-        rel = np.remainder(ang - top, 2 * math.pi) if span > 0 else \
-            np.remainder(top - ang, 2 * math.pi)
         hit = np.isfinite(r) & (r > 0) & (r < self.max_range - 1e-6)
-        between = (rel > 1e-6) & (rel < abs(span) - 1e-6) & hit
+        between = self._between(ang, top, other) & hit
         if not between.any():
             return False
-        ex = self.pose[0] + r[between] * np.cos(ang[between]) - meet[0]
-        ey = self.pose[1] + r[between] * np.sin(ang[between]) - meet[1]
-        return (float(np.hypot(ex, ey).min()) - meet[2]) / 2.0 < self.cfg.same_event
+        dip = float(self._echo_dist(ang[between], r[between], meet[:2]).min())
+        return (dip - meet[2]) / 2.0 < self.cfg.same_event
+
+    @staticmethod
+    def _between(ang, b, o):
+        """Which bearings of ``ang`` lie strictly between bearings ``b`` and ``o``, the
+        shorter way round."""
+        span = math.remainder(o - b, 2 * math.pi)
+        rel = np.remainder(ang - b, 2 * math.pi) if span > 0 else \
+            np.remainder(b - ang, 2 * math.pi)
+        return (rel > 1e-6) & (rel < abs(span) - 1e-6)
 
     @staticmethod
     def _one_opening(sep, ang, b, o):
@@ -733,11 +742,7 @@ class TraceGVD:
         ``sep`` (an obstacle within delta, or a closest obstacle of the meet point): the two
         maxima look through one opening. A cone between them that meets such an obstacle
         separates two openings, two GVD edges."""
-        span = math.remainder(o - b, 2 * math.pi)
-        rel = np.remainder(ang - b, 2 * math.pi) if span > 0 else \
-            np.remainder(b - ang, 2 * math.pi)
-        between = (rel > 1e-6) & (rel < abs(span) - 1e-6)
-        return not bool(np.any(sep[between]))
+        return not bool(np.any(sep[TraceGVD._between(ang, b, o)]))
 
     def _end_branch(self, how):
         br = self.task.get('branch')
