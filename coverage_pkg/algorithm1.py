@@ -75,7 +75,7 @@ MODE_FIELDS = ('handover', 'merge_continues', 'circuit_sweeps', 'cusp_detour', '
                'meet_scan', 'end_scan', 'sliver_openings', 'cusp_meet', 'meet_margin',
                'circuit_same_way', 'circuit_same_side', 'meet_side_pair', 'way_come_held',
                'meet_own_obstacles', 'traced_way', 'meet_surround', 'cusp_edge_traced',
-               'cusp_meet_gap', 'pinch_ends_cell', 'fork_at_meet')
+               'cusp_meet_gap', 'pinch_ends_cell', 'fork_at_meet', 'start_on_gvd')
 
 #: ``rules=paper``: each sensing rule of ours that is on in the default, set to the paper's
 #: reading (the rules of ours that are off in the default are off here too). What remains is
@@ -277,6 +277,14 @@ class PaperConfig:
     #                                 square entered through a door: its far corners)
     #                                 (TraceGVD._fork_here) (False: one edge, along the
     #                                 middle of their joint span)
+    start_on_gvd: bool = False      # ours: the start node's kind is read from D on the GVD
+    #                                 beside which the access ends (the mean of the two
+    #                                 closest obstacles' echoes), so a start in a hall just
+    #                                 over 2 delta wide is a vast node (PaperPlanner._start_D)
+    #                                 (False: from D where the robot stands, up to
+    #                                 event_tolerance short of the GVD: a narrow node, whose
+    #                                 trace along the hall's middle never sees D cross delta
+    #                                 and leaves a strip along each wall unseen)
     meet_surround: bool = False     # True: a meet point is taken only where its three
     #                                 closest obstacles surround it (no gap over 190 deg
     #                                 between their bearings) (False, as the paper's
@@ -468,7 +476,8 @@ class PaperPlanner(EventSensing, CreateNode, MorseDecompCoverage, TraceGVD, Find
             if v is not None:
                 self.state = 'access'
                 return self._body(*self._guard(v))
-            self.current = self.create_node('vast' if self.D > self.det else 'narrow',
+            d = self._start_D() if self.cfg.start_on_gvd else self.D
+            self.current = self.create_node('vast' if d > self.det else 'narrow',
                                             self.pose[:2]).id
             self._begin_node(self.nodes[self.current])
         self.t_plan = t
@@ -495,6 +504,20 @@ class PaperPlanner(EventSensing, CreateNode, MorseDecompCoverage, TraceGVD, Find
                for d, b in self.mins[1:]):
             return None
         return -np.array([math.cos(a), math.sin(a)]) * self.cfg.max_speed
+
+    def _start_D(self):
+        """D(x) for CreateNode at the start with ``start_on_gvd`` (ours). Where the access
+        ended beside the GVD (a second closest obstacle within 2 ``event_tolerance`` of the
+        closest, :meth:`_access`), the robot stands up to ``event_tolerance`` short of the
+        GVD and D there is the mean of the two echoes: the start node is vast where the GVD
+        beside it lies beyond delta (a hall just over 2 delta wide), as a trace entering that
+        hall from elsewhere would find by D crossing delta (:meth:`_sense_cusp`)."""
+        if self.D > self.det or not self.mins:
+            return self.D
+        d1, a = self.mins[0]
+        near = [d for d, b in self.mins[1:] if d - d1 < 2 * self.cfg.event_tolerance and
+                abs(math.remainder(a - b, 2 * math.pi)) > math.radians(60)]
+        return (d1 + near[0]) / 2 if near else self.D
 
     def _step(self, t):
         """One control step of the primitive being driven; None when it has just ended."""
