@@ -60,6 +60,10 @@ HALL_SIZES = (10.0, 20.0)
 #: packaged worlds compared in every report, before the generated ones
 HAND_MADE = ('demo_rooms', 'pillar_room')
 
+#: the five modes of ours that shorten the paper planner's path
+OUR_PATH_MODES = {'traced_way': True, 'circuit_sweeps': True, 'cusp_edge_traced': True,
+                  'cusp_meet_gap': True, 'pinch_ends_cell': True}
+
 #: the paper planner's selectable modes beside the default (Algorithm 1 in Fig. 13's order):
 #: (name, PaperConfig switches, what the mode changes)
 MODES = (
@@ -115,6 +119,24 @@ MODES = (
     ('cusp_detour', {'cusp_detour': True}, 'ours: a narrow node whose cusp the boundary circuit '
      'senses is covered at once and the circuit resumed where it was left (the paper finishes '
      'the vast cell first)'),
+    ('cusp_edge_traced', {'cusp_edge_traced': True}, 'ours: a GVD branch that ends at a cusp a '
+     "circuit sensed before, along that cusp's edge, has traced the edge of that cusp's narrow "
+     'node: the two narrow nodes are one and the branch ends traced (the default covers the '
+     "cusp's node on its own)"),
+    ('cusp_meet_gap', {'cusp_meet_gap': True}, 'ours: a cusp read as a meet point gives its own '
+     'branch the gap between its three closest obstacles nearest its bearing (the default: '
+     'the bisector of its two closest)'),
+    ('pinch_ends_cell', {'pinch_ends_cell': True}, 'ours: a Morse cell ends where the move '
+     'between laps finds obstacles either side nearer than delta, a lap where the delta disk '
+     'touches a corner ahead (the default follows the boundary and laps on)'),
+    ('fork_at_meet', {'fork_at_meet': True}, "ours: two peaks of a meet point's scan, one's "
+     "upper half holding the other's top, are two GVD edges where the obstacle between their "
+     'tops lies within rho + 2 same_event of the meet point (the default: one edge)'),
+    ('start_on_gvd', {'start_on_gvd': True}, "ours: the start node's kind read from D on the "
+     'GVD beside which the access ends (the default: D where the robot stands)'),
+    ('our_modes', {**OUR_PATH_MODES, 'fork_at_meet': True, 'start_on_gvd': True}, 'ours: the '
+     'five modes that shorten the path (traced_way, circuit_sweeps, cusp_edge_traced, '
+     'cusp_meet_gap, pinch_ends_cell) with fork_at_meet and start_on_gvd'),
 )
 
 #: (event switched off, world, what the paper predicts without it)
@@ -236,15 +258,29 @@ def comparison(worlds: Iterable[str | Path], quick: bool = False) -> list[dict[s
     return rows
 
 
-def modes(sets: dict[str, list[Path]]) -> list[dict[str, object]]:
+def _mode_row(task: tuple[str, dict[str, object]]) -> dict[str, object]:
+    """One world file under one mode's switches (a task of :func:`modes`' process pool): the
+    figures the Modes table keeps, without the run itself, which does not pickle."""
+    path, switches = task
+    row = _run(load_world(path), PaperConfig(**switches))
+    return {k: row[k] for k in ('covered', 'ratio', 'primitive_share', 'p99_ms')}
+
+
+def modes(sets: dict[str, list[Path]], jobs: int = 2) -> list[dict[str, object]]:
     """The paper planner's switches (:data:`MODES`) on the generated sets: per set and mode,
-    mean covered share of CVS, its minimum, mean path / bound and mean primitive share."""
+    mean covered share of CVS, its minimum, mean path / bound and mean primitive share;
+    ``jobs`` worlds at a time (update times are CPU times of the process, free of the
+    other's load)."""
+    from multiprocessing import Pool
+    groups = [(group, worlds) for group, worlds in sets.items() if group.startswith('seed')]
+    tasks = [(str(w), switches) for _, worlds in groups for _, switches, _ in MODES
+             for w in worlds]
+    with Pool(jobs) as pool:
+        done = iter(pool.map(_mode_row, tasks))
     out = []
-    for group, worlds in sets.items():
-        if not group.startswith('seed'):
-            continue
+    for group, worlds in groups:
         for name, switches, what in MODES:
-            rows = [_run(load_world(w), PaperConfig(**switches)) for w in worlds]
+            rows = [next(done) for _ in worlds]
             out.append({'set': group, 'mode': name, 'what': what,
                         'covered': float(np.mean([r['covered'] for r in rows])),
                         'min': min(r['covered'] for r in rows),
@@ -450,7 +486,8 @@ def write_report(out_dir: Path, quick: bool = False) -> list[Path]:
                      'path / bound'], where)
     lines += ['', '## Modes of the paper planner', '',
               "The paper planner above runs Algorithm 1 in Fig. 13's order (the default: "
-              f'{_default_switches()}). Each row below changes one switch, on the same '
+              f'{_default_switches()}). Each row below sets the switches it names (`rules=paper`: '
+              'ten; `our_modes`: seven; the others: one) against the default, on the same '
               'generated worlds (`python -m coverage_pkg.paper_measure --seeds A-B --set '
               'NAME=VALUE`).', '']
     base = {g: [r for r in rows if r['planner'] == 'paper' and r['set'] == g] for g in sets}
