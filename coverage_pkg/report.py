@@ -164,7 +164,11 @@ def _default_switches() -> str:
             f'`meet_margin` {cfg.meet_margin:g} m')
 
 
-def _run(world, config, max_time=3000.0):
+def _run(world, config, max_time=3000.0, where=True):
+    """One run in the ROS-free loop and its figures; ``where``: also where the paper
+    planner's path goes and what of it ran over CVS swept before (:func:`swept_before`, a
+    replay of the path as long as the run's own accounting), which the Modes table does
+    not show."""
     r = run_kinematic(world, config, max_time=max_time, clock=time.thread_time)
     ut = np.asarray(r['update_times']) * 1e3
     row = {'state': r['state'], 'covered': r['covered_fraction'],
@@ -179,6 +183,8 @@ def _run(world, config, max_time=3000.0):
         row['primitive_share'] = 1.0 - lengths.get('transit', 0.0) / total if total else None
         scale = r['path_length'] / total / r['lower_bound'] if total else 0.0
         row['where'] = ' / '.join(f'{lengths.get(k, 0.0) * scale:.2f}' for k in PRIMITIVES)
+        if not where:
+            return row
         idle = swept_before(r)
         bound = r['lower_bound']
         row['lengths'] = {k: lengths.get(k, 0.0) * scale for k in PRIMITIVES}
@@ -262,7 +268,7 @@ def _mode_row(task: tuple[str, dict[str, object]]) -> dict[str, object]:
     """One world file under one mode's switches (a task of :func:`modes`' process pool): the
     figures the Modes table keeps, without the run itself, which does not pickle."""
     path, switches = task
-    row = _run(load_world(path), PaperConfig(**switches))
+    row = _run(load_world(path), PaperConfig(**switches), where=False)
     return {k: row[k] for k in ('covered', 'ratio', 'primitive_share', 'p99_ms')}
 
 
