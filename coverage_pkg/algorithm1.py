@@ -496,28 +496,30 @@ class PaperPlanner(EventSensing, CreateNode, MorseDecompCoverage, TraceGVD, Find
         are equidistant (on the GVD: a narrow node) or D exceeds delta (a vast node), for
         at most ``access_time`` s. None when the node can be created here."""
         if self.D > self.det or t - self.t_first_sweep > self.cfg.warmup + \
-                self.cfg.access_time or not self.mins:
+                self.cfg.access_time or not self.mins or self._second_closest() is not None:
             return None
-        d1, a = self.mins[0]
-        if any(d - d1 < 2 * self.cfg.event_tolerance and
-               abs(math.remainder(a - b, 2 * math.pi)) > math.radians(60)
-               for d, b in self.mins[1:]):
-            return None
+        a = self.mins[0][1]
         return -np.array([math.cos(a), math.sin(a)]) * self.cfg.max_speed
+
+    def _second_closest(self):
+        """The range of a second closest obstacle as near as the closest (within 2
+        ``event_tolerance``, over 60 degrees away): the robot stands beside the GVD between
+        them. None where there is none."""
+        d1, a = self.mins[0]
+        return next((d for d, b in self.mins[1:] if d - d1 < 2 * self.cfg.event_tolerance and
+                     abs(math.remainder(a - b, 2 * math.pi)) > math.radians(60)), None)
 
     def _start_D(self):
         """D(x) for CreateNode at the start with ``start_on_gvd`` (ours). Where the access
-        ended beside the GVD (a second closest obstacle within 2 ``event_tolerance`` of the
-        closest, :meth:`_access`), the robot stands up to ``event_tolerance`` short of the
-        GVD and D there is the mean of the two echoes: the start node is vast where the GVD
-        beside it lies beyond delta (a hall just over 2 delta wide), as a trace entering that
-        hall from elsewhere would find by D crossing delta (:meth:`_sense_cusp`)."""
+        ended beside the GVD (:meth:`_second_closest`, :meth:`_access`), the robot stands up
+        to ``event_tolerance`` short of the GVD and D there is the mean of the two echoes: the
+        start node is vast where the GVD beside it lies beyond delta (a hall just over 2 delta
+        wide), as a trace entering that hall from elsewhere would find by D crossing delta
+        (:meth:`_sense_cusp`)."""
         if self.D > self.det or not self.mins:
             return self.D
-        d1, a = self.mins[0]
-        near = [d for d, b in self.mins[1:] if d - d1 < 2 * self.cfg.event_tolerance and
-                abs(math.remainder(a - b, 2 * math.pi)) > math.radians(60)]
-        return (d1 + near[0]) / 2 if near else self.D
+        d2 = self._second_closest()
+        return self.D if d2 is None else (self.mins[0][0] + d2) / 2
 
     def _step(self, t):
         """One control step of the primitive being driven; None when it has just ended."""
