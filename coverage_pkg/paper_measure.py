@@ -44,7 +44,7 @@ def parse_seeds(text: str) -> list[int]:
 
 def parse_config(items: list[str]) -> dict[str, object]:
     """PaperConfig fields from 'name=value' strings (typed like the field's default; any
-    field, the thresholds too; ``rules=paper`` as in
+    field, the thresholds too; ``rules=paper`` and ``ours=on`` as in
     :func:`coverage_pkg.algorithm1.parse_modes`)."""
     try:
         return parse_modes(items, fields=[f.name for f in dataclasses.fields(PaperConfig)])
@@ -110,8 +110,8 @@ def main(argv: list[str] | None = None) -> int:
                     'floor and the nearest-first walks (any order; circuits first) as multiples '
                     'of the bound')
     ap.add_argument('--set', action='append', default=[], metavar='NAME=VALUE',
-                    help="a PaperConfig field, e.g. 'circuit_sweeps=true', or 'rules=paper' "
-                    '(repeatable; later ones override earlier ones)')
+                    help="a PaperConfig field, e.g. 'circuit_sweeps=true', 'rules=paper' or "
+                    "'ours=on' (repeatable; later ones override earlier ones)")
     args = ap.parse_args(argv)
     config = parse_config(args.set)
     if args.world:

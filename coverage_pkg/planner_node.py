@@ -3,7 +3,7 @@
 A thin adapter (all the math is in the planners): ``planner:=paper`` (the default) runs
 Algorithm 1 of Acar, Choset and Lee driven by sensed events alone
 (:class:`coverage_pkg.algorithm1.PaperPlanner`, ablations with ``without``, modes with
-``modes``, e.g. ``rules=paper`` or ``handover=false``);
+``modes``, e.g. ``rules=paper``, ``handover=false`` or ``ours=on``);
 ``planner:=grid`` the frontier-driven evidence-grid planner (ours, not the paper's,
 :class:`coverage_pkg.planner.CoveragePlanner`).
 Inputs, and nothing else (never the world file, never ground truth):
@@ -75,7 +75,8 @@ class CoveragePlannerNode(ParamotionNode):
               "(coverage_pkg/algorithm1.py: MODE_FIELDS), later ones overriding earlier ones: "
               "'rules=paper' sets every sensing rule of ours to the paper's reading, "
               "'handover=false' is Algorithm 1's pseudocode order, e.g. "
-              "'rules=paper,handover=false'.", read_only=True),
+              "'rules=paper,handover=false'; 'ours=on' turns on the seven modes of ours "
+              "that are off in the default (algorithm1.py: OUR_MODES).", read_only=True),
         Param('beam_width', 0.2, 'Cone angle of one transducer (rad); the same as the sonar '
               "ring's field_of_view (LaserScan does not carry it).", min=0.01, max=1.5,
               read_only=True),

@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from coverage_pkg.algorithm1 import PAPER_RULES, PaperConfig
+from coverage_pkg.algorithm1 import OUR_MODES, PAPER_RULES, PaperConfig
 from coverage_pkg.kinematic import run_kinematic
 from coverage_pkg.planner import PlannerConfig, graph_dict
 from coverage_pkg.world import World, load_world, world_from_dict
@@ -59,10 +59,6 @@ BROAD_SETS = ((1000, 260, 'seen'), (2000, 100, 'seen'), (3000, 100, 'seen'),
 HALL_SIZES = (10.0, 20.0)
 #: packaged worlds compared in every report, before the generated ones
 HAND_MADE = ('demo_rooms', 'pillar_room')
-
-#: the five modes of ours that shorten the paper planner's path
-OUR_PATH_MODES = {'traced_way': True, 'circuit_sweeps': True, 'cusp_edge_traced': True,
-                  'cusp_meet_gap': True, 'pinch_ends_cell': True}
 
 #: the paper planner's selectable modes beside the default (Algorithm 1 in Fig. 13's order):
 #: (name, PaperConfig switches, what the mode changes)
@@ -134,7 +130,7 @@ MODES = (
      'tops lies within rho + 2 same_event of the meet point (the default: one edge)'),
     ('start_on_gvd', {'start_on_gvd': True}, "ours: the start node's kind read from D on the "
      'GVD beside which the access ends (the default: D where the robot stands)'),
-    ('our_modes', {**OUR_PATH_MODES, 'fork_at_meet': True, 'start_on_gvd': True}, 'ours: the '
+    ('our_modes', OUR_MODES, 'ours: the '
      'five modes that shorten the path (traced_way, circuit_sweeps, cusp_edge_traced, '
      'cusp_meet_gap, pinch_ends_cell) with fork_at_meet and start_on_gvd'),
 )

@@ -1,17 +1,19 @@
 """The paper planner's selectable modes end to end: ``rules=paper`` (every sensing rule of ours
-set to the paper's reading) and single switches, from the command line, the launch argument
-and the node parameter ``modes`` down to the PaperConfig the planner runs with."""
+set to the paper's reading), ``ours=on`` (the modes of ours that are off in the default, on)
+and single switches, from the command line, the launch argument and the node parameter
+``modes`` down to the PaperConfig the planner runs with."""
 import json
 from pathlib import Path
 
 import pytest
 
-from coverage_pkg.algorithm1 import MODE_FIELDS, PAPER_RULES, PaperConfig, parse_modes
+from coverage_pkg.algorithm1 import MODE_FIELDS, OUR_MODES, PAPER_RULES, PaperConfig, parse_modes
 from paramotion.cli import main as cli_main
 from paramotion.errors import ParameterError, UserError
 
 WORLDS = Path(__file__).resolve().parents[1] / 'coverage_pkg' / 'worlds'
 DOOR_ROOMS = str(WORLDS / 'door_rooms.json')
+DEMO_ROOMS = str(WORLDS / 'demo_rooms.json')
 
 
 def test_paper_rules_set_every_rule_of_ours_the_default_has_on():
@@ -26,6 +28,22 @@ def test_paper_rules_set_every_rule_of_ours_the_default_has_on():
     assert set(PAPER_RULES) == ours_on
 
 
+def test_ours_on_sets_every_mode_of_ours_the_default_has_off_and_nothing_else():
+    """ours=on turns on the seven modes of ours (docs: our planner beside the paper's), each
+    off in the default and none of the paper's rules; ours=off puts them back."""
+    base = PaperConfig()
+    assert set(OUR_MODES) <= set(MODE_FIELDS)
+    assert all(getattr(base, k) is False and v is True for k, v in OUR_MODES.items())
+    assert not set(OUR_MODES) & set(PAPER_RULES)
+    assert set(OUR_MODES) == {'traced_way', 'circuit_sweeps', 'cusp_edge_traced',
+                              'cusp_meet_gap', 'pinch_ends_cell', 'fork_at_meet',
+                              'start_on_gvd'}
+    assert parse_modes('ours=on') == OUR_MODES
+    assert parse_modes('ours=on,start_on_gvd=false') == {**OUR_MODES, 'start_on_gvd': False}
+    assert parse_modes(['ours=on', 'ours=off']) == {k: False for k in OUR_MODES}
+    assert parse_modes('rules=paper,ours=on') == {**PAPER_RULES, **OUR_MODES}
+
+
 def test_later_modes_override_earlier_ones():
     assert parse_modes('rules=paper,meet_scan=true') == {**PAPER_RULES, 'meet_scan': True}
     assert parse_modes(['meet_scan=false', 'rules=ours']) == {
@@ -38,6 +56,7 @@ def test_later_modes_override_earlier_ones():
 @pytest.mark.parametrize('text, words', [
     ('handover', 'mode "handover" must be NAME=VALUE'),
     ('rules=strict', 'rules takes paper or ours'),
+    ('ours=all', 'ours takes on or off'),
     ('view_margin=0.1', 'view_margin is not a mode of the paper planner'),
     ('meet_scan=maybe', 'meet_scan takes true or false'),
     ('meet_margin=-0.1', 'meet_margin must be finite and >= 0'),
@@ -64,6 +83,8 @@ def test_the_planner_node_runs_the_modes_it_is_given():
         cfg = node.config
         assert {k: getattr(cfg, k) for k in PAPER_RULES} == PAPER_RULES
         assert cfg.handover is False
+        ours = graph.add(CoveragePlannerNode, name='coverage_planner_ours', modes='ours=on')
+        assert ours.config == PaperConfig(**OUR_MODES)
         default = graph.add(CoveragePlannerNode, name='coverage_planner_default')
         assert default.config == PaperConfig()
 
@@ -108,3 +129,19 @@ def test_the_papers_rules_alone_cover_two_rooms_and_a_corridor_in_the_ros_graph(
     assert r['covered_fraction_of_cvs'] >= 0.99
     kinds = [e[1] for e in r['events']]
     assert kinds.count('node_created') >= 2 and 'cusp' in kinds
+
+
+def test_our_planner_covers_the_demo_world_without_laps_in_the_ros_graph(tmp_path):
+    """Closed loop, the ROS graph, ours=on (our planner beside the paper's): the demo world
+    is covered and no lap is driven, since each room lies within delta - 0.2 m of its
+    boundary circuit (circuit_sweeps; the default drives laps there, 0.18 times the bound in
+    the ROS-free loop); the result records the seven modes the planner node ran with."""
+    out = tmp_path / 'out'
+    code = cli_main(['coverage', '--world', DEMO_ROOMS, '--mode', 'ours=on', '--out',
+                     str(out)])
+    r = json.loads((out / 'result.json').read_text())
+    assert r['modes'] == OUR_MODES
+    assert code == 0 and r['outcome'] == 'complete'
+    assert r['covered_fraction_of_cvs'] >= 0.99
+    assert r['primitive_lengths_m'].get('lap', 0.0) == 0.0
+    assert r['primitive_lengths_m']['boundary'] > 0.0
