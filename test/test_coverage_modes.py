@@ -116,17 +116,24 @@ def test_a_bad_mode_on_the_command_line_stops_before_anything_runs(tmp_path, cap
     assert not out.exists()
 
 
+def _covered_in_the_ros_graph(tmp_path, world, mode, modes):
+    """``paramotion coverage --world world --mode mode`` (the ROS graph, one executor): its
+    result, after checking that the run is complete, covers >= 99 % of CVS and records the
+    ``modes`` the planner node ran with (read from its configuration)."""
+    out = tmp_path / 'out'
+    code = cli_main(['coverage', '--world', world, '--mode', mode, '--out', str(out)])
+    r = json.loads((out / 'result.json').read_text())
+    assert r['modes'] == modes
+    assert code == 0 and r['outcome'] == 'complete'
+    assert r['covered_fraction_of_cvs'] >= 0.99
+    return r
+
+
 def test_the_papers_rules_alone_cover_two_rooms_and_a_corridor_in_the_ros_graph(tmp_path):
     """Closed loop, the ROS graph: with every rule of ours off the planner still senses the
     corridor's cusps and the rooms' events and covers the world (99.97 % here); the result
     records the modes the planner node ran with, read from its configuration."""
-    out = tmp_path / 'out'
-    code = cli_main(['coverage', '--world', DOOR_ROOMS, '--mode', 'rules=paper', '--out',
-                     str(out)])
-    r = json.loads((out / 'result.json').read_text())
-    assert r['modes'] == PAPER_RULES
-    assert code == 0 and r['outcome'] == 'complete'
-    assert r['covered_fraction_of_cvs'] >= 0.99
+    r = _covered_in_the_ros_graph(tmp_path, DOOR_ROOMS, 'rules=paper', PAPER_RULES)
     kinds = [e[1] for e in r['events']]
     assert kinds.count('node_created') >= 2 and 'cusp' in kinds
 
@@ -136,12 +143,6 @@ def test_our_planner_covers_the_demo_world_without_laps_in_the_ros_graph(tmp_pat
     is covered and no lap is driven, since each room lies within delta - 0.2 m of its
     boundary circuit (circuit_sweeps; the default drives laps there, 0.18 times the bound in
     the ROS-free loop); the result records the seven modes the planner node ran with."""
-    out = tmp_path / 'out'
-    code = cli_main(['coverage', '--world', DEMO_ROOMS, '--mode', 'ours=on', '--out',
-                     str(out)])
-    r = json.loads((out / 'result.json').read_text())
-    assert r['modes'] == OUR_MODES
-    assert code == 0 and r['outcome'] == 'complete'
-    assert r['covered_fraction_of_cvs'] >= 0.99
+    r = _covered_in_the_ros_graph(tmp_path, DEMO_ROOMS, 'ours=on', OUR_MODES)
     assert r['primitive_lengths_m'].get('lap', 0.0) == 0.0
     assert r['primitive_lengths_m']['boundary'] > 0.0
