@@ -30,8 +30,8 @@ start on neither the GVD nor VR first moves off its single closest obstacle
 ``without`` switches the sensing of one event kind off (``cusp``, ``critical``, ``meet``), so
 that the run shows what the paper predicts without it. :func:`parse_modes` reads the
 selectable modes (``handover=false``: Algorithm 1's pseudocode order; ``rules=paper``: every
-sensing rule of ours set to the paper's reading, :data:`PAPER_RULES`; ``ours=on``: every mode
-of ours that is off in the default, on, :data:`OUR_MODES`). Plain numpy; no ROS.
+sensing rule of ours set to the paper's reading, :data:`PAPER_RULES`; ``ours=on``: seven of
+the modes of ours that are off in the default, on, :data:`OUR_MODES`). Plain numpy; no ROS.
 """
 from __future__ import annotations
 
@@ -89,14 +89,14 @@ PAPER_RULES = {'meet_scan': False, 'sliver_openings': False, 'circuit_join': Fal
                'circuit_same_side': False, 'meet_side_pair': False, 'way_come_held': False,
                'meet_own_obstacles': False}
 
-#: ``ours=on``: the modes of ours that are off in the default, on: the five that shorten the
-#: path (``traced_way``, ``circuit_sweeps``, ``cusp_edge_traced``, ``cusp_meet_gap``,
+#: ``ours=on``: seven of the modes of ours that are off in the default, on: the five that
+#: shorten the path (``traced_way``, ``circuit_sweeps``, ``cusp_edge_traced``, ``cusp_meet_gap``,
 #: ``pinch_ends_cell``) and the two that cover a corner and the strips of a hall the default
 #: leaves unseen (``fork_at_meet``, ``start_on_gvd``). It is our planner beside the paper's,
 #: measured side by side with the default in docs/coverage.md, *Results*, and in the
 #: report's Modes table (``our_modes``). The other modes of ours that are off in the default
-#: stay off in it: ``end_scan`` lengthens the path, ``cusp_detour`` and ``meet_surround=true``
-#: leave a world below 99 % (docs/coverage.md, *Modes*).
+#: stay off in it: ``end_scan`` and ``merge_continues`` lengthen the path, ``cusp_detour``
+#: and ``meet_surround=true`` leave a world below 99 % (docs/coverage.md, *Modes*).
 OUR_MODES = {'traced_way': True, 'circuit_sweeps': True, 'cusp_edge_traced': True,
              'cusp_meet_gap': True, 'pinch_ends_cell': True, 'fork_at_meet': True,
              'start_on_gvd': True}
@@ -194,8 +194,9 @@ class PaperConfig:
     #                                 which goes on being covered at once (False: the later
     #                                 node is covered there, and FindUncoveredNode chooses
     #                                 the next node, the earlier one among the uncovered)
-    circuit_sweeps: bool = False    # ours: no laps in a cell its circuit has swept (loses
-    #                                 coverage on held-out worlds: not safe)
+    circuit_sweeps: bool = False    # ours: no laps in a cell its circuit has swept (off:
+    #                                 it drops the paper's laps; it lowers some worlds by up
+    #                                 to 0.68 points, none below 99 %)
     cusp_detour: bool = False       # ours: a narrow node whose cusp the boundary circuit
     #                                 senses is traced at once; the circuit resumes after
     retrace_angle: float = 45.0     # deg, transit follows a traced GVD edge (a wall at
@@ -273,7 +274,7 @@ class PaperConfig:
     #                                 by a circuit, along that cusp's edge, has traced the
     #                                 cusp's narrow node's edge from its other end: the two
     #                                 narrow nodes are one and the cusp's branch ends traced
-    #                                 (PaperPlanner._cusp_edge_traced) (False: the cusp's
+    #                                 (CreateNode._cusp_edge_traced) (False: the cusp's
     #                                 node is covered on its own, its branch traced until it
     #                                 joins the traced edge, then merged)
     cusp_meet_gap: bool = False     # ours, with cusp_meet: the cusp's own branch leaves

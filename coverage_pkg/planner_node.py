@@ -75,7 +75,7 @@ class CoveragePlannerNode(ParamotionNode):
               "(coverage_pkg/algorithm1.py: MODE_FIELDS), later ones overriding earlier ones: "
               "'rules=paper' sets every sensing rule of ours to the paper's reading, "
               "'handover=false' is Algorithm 1's pseudocode order, e.g. "
-              "'rules=paper,handover=false'; 'ours=on' turns on the seven modes of ours "
+              "'rules=paper,handover=false'; 'ours=on' turns on seven of the modes of ours "
               "that are off in the default (algorithm1.py: OUR_MODES).", read_only=True),
         Param('beam_width', 0.2, 'Cone angle of one transducer (rad); the same as the sonar '
               "ring's field_of_view (LaserScan does not carry it).", min=0.01, max=1.5,

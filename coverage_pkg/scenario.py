@@ -292,8 +292,8 @@ def add_planner_args(parser):
                         help="a mode of the paper planner (repeatable, later ones override "
                         "earlier ones): 'rules=paper' sets every sensing rule of ours to the "
                         "paper's reading, 'handover=false' is Algorithm 1's pseudocode order, "
-                        "'ours=on' turns on the seven modes of ours that are off in the "
-                        'default; the names: coverage_pkg/algorithm1.py MODE_FIELDS')
+                        "'ours=on' turns on seven of the modes of ours that are off in the "
+                        'default (OUR_MODES); the names: coverage_pkg/algorithm1.py MODE_FIELDS')
 
 
 def register(subparsers):
