@@ -12,9 +12,10 @@ poses, status). The planner node is only its adapter. Steps of the paper's Fig. 
 3. the prediction function (6)-(8) gives the next planned pose of the moving ring, Delta further
    along its axis;
 4. the inverse kinematics (2)-(3) give the leg lengths C_i;
-5. the lengths are commanded; steps 2-5 repeat until the next step would take an actuator
-   within Delta of its stroke end (``L_max - max C <= Delta`` when extending, the mirror when
-   retracting) or to a near-singular configuration (Jacobian condition above a threshold);
+5. the lengths are commanded; steps 2-5 repeat until the next planned pose (Delta further)
+   would take an actuator within ``stroke_margin`` of either stroke end (a look-ahead in place
+   of the paper's ``L_max - max C <= Delta`` on the lengths reached) or to a near-singular
+   configuration (Jacobian condition above a threshold);
 6. the moving ring is clamped and, once its clamp is *confirmed* closed, the other ring is
    released: it becomes the moving ring. Steps 1-6 repeat until the top (every echo of the
    leading ring lost together above a structure the other ring still senses), ``n_cycles``
@@ -545,7 +546,8 @@ class ClimbingGait:
 
         The moving ring's own latest centre at least ``secant_baseline`` back along the motion
         (a shorter secant would amplify the measurement noise into tilt); failing that, the
-        other ring's latest centre; None if neither exists (then the ring keeps its axis).
+        other ring's latest centre; None if neither exists (then eq. (7) as printed: the
+        approach vector along the displacement).
         """
         sign = math.copysign(1.0, delta)
         for cand in reversed(self._centres[ring][:-1]):
@@ -595,7 +597,7 @@ class ClimbingGait:
         self.pose[ring] = (new_p, new_r)
         rel_p, rel_r = self._relative()
         self.pose[ring] = old
-        reason = self._limit_reason(rel_p, rel_r, delta)
+        reason = self._limit_reason(rel_p, rel_r)
         if reason is not None:
             if self.steps_in_semicycle == 0:
                 self._refuse(f'{RING_NAMES[ring]} cannot make a single step: {reason} '
@@ -642,8 +644,10 @@ class ClimbingGait:
         cond = float(gs.jacobian_condition(self.geom, gs.jacobian(self.geom, rel_p, rel_r)))
         return lengths, cond
 
-    def _limit_reason(self, rel_p, rel_r, delta):
-        """Step 5's end-of-semicycle test on the planned relative pose, or None if fine."""
+    def _limit_reason(self, rel_p, rel_r):
+        """Step 5's end-of-semicycle test on the next planned relative pose, or None if fine:
+        a leg within ``stroke_margin`` of a stroke end, a near-singular configuration, the
+        rings tilted apart or crossing."""
         lengths, cond = self._ik(rel_p, rel_r)
         lo = self.geom.leg_min + self.p.stroke_margin
         hi = self.geom.leg_max - self.p.stroke_margin
