@@ -22,6 +22,7 @@ import time
 from pathlib import Path
 
 from coverage_pkg.algorithm1 import parse_modes, parse_without, primitive_lengths
+from coverage_pkg.figure import planner_label
 from coverage_pkg.scenario import add_planner_args, check_paper_options
 from paramotion.errors import UserError
 from paramotion.scenario_io import add_output_args, output_dir, write_json
@@ -212,7 +213,8 @@ def run_demo(out, rtf=2.0, max_wall=240.0, world=None, overwrite=False, echo=pri
             result['primitive_lengths_m'] = primitive_lengths(segments)
         write_json(tmp / 'result.json', result)
         from coverage_pkg.figure import render_coverage
-        title = (f"{world_obj.name}, {planner_name} planner, one process per node at {rtf:g}x: "
+        label = planner_label(planner_name, parse_without(without), modes)
+        title = (f"{world_obj.name}, {label}, one process per node at {rtf:g}x: "
                  f"path "
                  f"{ev['path_length_m']:.1f} m, covered {100 * ev['fraction']:.2f}% of CVS, "
                  f"{result['outcome']}")
@@ -232,7 +234,8 @@ def _run(args):
     r = run_demo(args.out, args.rtf, args.max_wall, args.world, args.overwrite,
                  planner=args.planner, without=args.without, modes=args.mode)
     out = Path(args.out)
-    print(f"coverage {r['world_name']} ({r['planner']} planner, one process per node): "
+    label = planner_label(r['planner'], r['without'], args.mode)
+    print(f"coverage {r['world_name']} ({label}, one process per node): "
           f"{r['outcome']} after "
           f"{r['sim_time_s']:.1f} s sim time in {r['wall_time_s']:.1f} s wall")
     print(f"covered {100 * r['covered_fraction_of_cvs']:.2f}% of CVS "

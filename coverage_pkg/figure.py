@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import textwrap
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -13,6 +13,19 @@ if TYPE_CHECKING:
     from coverage_pkg.algorithm1 import PaperPlanner
     from coverage_pkg.planner import CoveragePlanner
     from coverage_pkg.world import World
+
+
+def planner_label(planner: str, without: Sequence[str] = (),
+                  modes: Sequence[str] = ()) -> str:
+    """How a run's figure title and summary name its planner: an ablation or a mode of the
+    paper planner is part of what the picture shows (``paper planner, without cusp, modes
+    ours=on``), so a picture of an ablation is never taken for the default's."""
+    label = f'{planner} planner'
+    if without:
+        label += f", without {','.join(without)}"
+    if modes:
+        label += f", modes {','.join(modes)}"
+    return label
 
 
 def render_coverage(path_png: str | Path, world: World, path: ArrayLike,

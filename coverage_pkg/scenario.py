@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from coverage_pkg.algorithm1 import EVENTS, MODE_FIELDS, PaperConfig, parse_modes, parse_without
+from coverage_pkg.figure import planner_label
 from coverage_pkg.planner import PlannerConfig, graph_dict
 from coverage_pkg.sonar import SonarRing
 from coverage_pkg.world import load_world
@@ -218,7 +219,8 @@ def _run(args):
         write_json(tmp / 'result.json', result)
         from coverage_pkg.figure import render_coverage
         world = load_world(args.world)
-        title = (f"{world.name}: {args.planner} planner, {args.detector} detector "
+        title = (f"{world.name}: {planner_label(args.planner, args.without, args.mode)}, "
+                 f"{args.detector} detector "
                  f"(range {result['detector_range_m']:g}"
                  f" m), path {result['path_length_m']:.1f} m (lower bound "
                  f"{result['lower_bound_path_m']:.1f} m), covered "
@@ -226,10 +228,9 @@ def _run(args):
                  f"{result['outcome']}")
         render_coverage(tmp / 'coverage.png', world, result['path'],
                         result['hierarchical_graph'], layers, uncovered, title)
-    print(f"coverage {result['world_name']} ({args.planner} planner, {args.detector} detector"
-          + (f", without {','.join(args.without)}" if args.without else '')
-          + (f", modes {','.join(args.mode)}" if args.mode else '')
-          + f"): {result['outcome']} "
+    label = planner_label(args.planner, args.without, args.mode)
+    print(f"coverage {result['world_name']} ({label}, {args.detector} detector): "
+          f"{result['outcome']} "
           f"after {result['sim_time_s']:.1f} s sim time in {result['wall_time_s']:.1f} s wall")
     print(f"covered {100 * result['covered_fraction_of_cvs']:.2f}% of CVS "
           f"({result['cvs_area_m2']:.1f} m^2); path {result['path_length_m']:.1f} m, lower "

@@ -138,11 +138,23 @@ def test_the_papers_rules_alone_cover_two_rooms_and_a_corridor_in_the_ros_graph(
     assert kinds.count('node_created') >= 2 and 'cusp' in kinds
 
 
-def test_our_planner_covers_the_demo_world_without_laps_in_the_ros_graph(tmp_path):
+def test_a_runs_label_names_its_ablations_and_modes():
+    """The figure title and the summary line of a run name what was switched, so that a
+    picture of an ablation or of our planner is never taken for the default's."""
+    from coverage_pkg.figure import planner_label
+    assert planner_label('paper') == 'paper planner'
+    assert planner_label('grid', (), ()) == 'grid planner'
+    assert planner_label('paper', ('cusp', 'meet'), ['ours=on']) == \
+        'paper planner, without cusp,meet, modes ours=on'
+
+
+def test_our_planner_covers_the_demo_world_without_laps_in_the_ros_graph(tmp_path, capsys):
     """Closed loop, the ROS graph, ours=on (our planner beside the paper's): the demo world
     is covered and no lap is driven, since each room lies within delta - 0.2 m of its
     boundary circuit (circuit_sweeps; the default drives laps there, 0.18 times the bound in
     the ROS-free loop); the result records the seven modes the planner node ran with."""
     r = _covered_in_the_ros_graph(tmp_path, DEMO_ROOMS, 'ours=on', OUR_MODES)
+    assert '(paper planner, modes ours=on, extended detector): complete' in \
+        capsys.readouterr().out
     assert r['primitive_lengths_m'].get('lap', 0.0) == 0.0
     assert r['primitive_lengths_m']['boundary'] > 0.0
