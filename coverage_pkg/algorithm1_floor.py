@@ -34,6 +34,10 @@ nearest-first choice, idealised: it senses every edge at once and drives the tru
 way to it. With ``circuits_first`` it keeps Algorithm 1's order in a vast cell: a curve
 D = delta, once reached, is driven round before the GVD edges that leave it.
 
+:func:`driven_again` splits a path the planner drove into ground driven for the first time
+and ground driven again, to set the first against the required length and the rest against
+the walk's ways between edges.
+
 Laps, the way between disconnected pieces and anything the sensors make the robot do are not
 counted, so the planner's path can only be longer - except where the planner skips a stretch
 the floor counts (the report says so where it happens). Unlike the full-knowledge route of
@@ -46,6 +50,7 @@ import math
 from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from coverage_pkg.cvs import CoverableSet
 from coverage_pkg.oracle import geodesic
@@ -353,3 +358,23 @@ def _circuits(edges, on_curve):
         if c:
             parent[root(a)] = root(b)
     return [root(a) if c else None for (a, _, _), c in zip(edges, on_curve)]
+
+
+def driven_again(path: ArrayLike, within: float = 0.3, lag: float = 1.0) -> float:
+    """Length of ``path`` (an (n, 2) polyline) driven a second time: each step whose end
+    lies within ``within`` of a point the path passed more than ``lag`` of path length
+    before (so that a step is not counted against the stretch just driven). The rest of the
+    length is ground driven for the first time: on the paper planner's path, the first
+    tracing of GVD edges and boundary, to be set against the floor's required length; what
+    is driven again (the way back out of dead ends, to open branches and nodes) against the
+    walk's ways between edges."""
+    from scipy.spatial import cKDTree
+    p = np.asarray(path, dtype=float).reshape(-1, 2)
+    if len(p) < 2:
+        return 0.0
+    step = np.hypot(*np.diff(p, axis=0).T)
+    at = np.concatenate(([0.0], np.cumsum(step)))
+    before = np.searchsorted(at, at - lag, side='right')    # indices of points lag behind
+    near = cKDTree(p).query_ball_point(p, within)
+    again = np.array([bool(b) and min(idx) < b for idx, b in zip(near, before)])
+    return float(step[again[1:]].sum())

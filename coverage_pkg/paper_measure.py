@@ -80,13 +80,19 @@ def measure_world(seed: int | str, png_dir: str | None = None, max_time: float =
            'per_bound': {k: lengths.get(k, 0.0) / r['lower_bound'] * (
                r['path_length'] / total if total else 0.0) for k in PRIMITIVES}}
     if floor:
-        from coverage_pkg.algorithm1_floor import algorithm1_floor, nearest_first_walks
+        from coverage_pkg.algorithm1_floor import (
+            algorithm1_floor,
+            driven_again,
+            nearest_first_walks,
+        )
         cfg = PaperConfig(**(config or {}))
         f = algorithm1_floor(world, cfg.radius, cfg.delta, cfg.view_margin)
         row['floor'] = f['floor'] / r['lower_bound']
         w = nearest_first_walks(world, cfg.radius, cfg.delta, cfg.view_margin)
         row['walk'] = w['any_order']['walk'] / r['lower_bound']
         row['walk_circuits'] = w['circuits_first']['walk'] / r['lower_bound']
+        row['required'] = w['required'] / r['lower_bound']
+        row['again'] = driven_again(r['path']) / r['lower_bound']
     if png_dir:
         from coverage_pkg.figure import render_coverage
         Path(png_dir).mkdir(parents=True, exist_ok=True)
@@ -108,7 +114,8 @@ def main(argv: list[str] | None = None) -> int:
                     help='also the floor of Algorithm 1 on the true world '
                     '(coverage_pkg/algorithm1_floor.py) as a multiple of the bound, path / '
                     'floor and the nearest-first walks (any order; circuits first) as multiples '
-                    'of the bound')
+                    "of the bound, the floor's required length, and the path split into ground "
+                    'driven for the first time and driven again (algorithm1_floor.driven_again)')
     ap.add_argument('--set', action='append', default=[], metavar='NAME=VALUE',
                     help="a PaperConfig field, e.g. 'circuit_sweeps=true', 'rules=paper' or "
                     "'ours=on' (repeatable; later ones override earlier ones)")
@@ -127,14 +134,15 @@ def main(argv: list[str] | None = None) -> int:
                            [args.max_sim_time] * len(seeds), [config] * len(seeds),
                            [args.floor] * len(seeds)))
     floor_head = (' floor/bound | path/floor | nearest-first/bound | circuits-first/bound |'
-                  if args.floor else '')
+                  ' required/bound | first-time/bound | again/bound |' if args.floor else '')
     print('| world | state | covered | path/bound | ' + ' | '.join(PRIMITIVES) +
           ' | primitives | update median ms (CPU) | p99 ms (CPU) | sim s |' + floor_head)
-    print('|---' * (8 + len(PRIMITIVES) + 4 * args.floor) + '|')
+    print('|---' * (8 + len(PRIMITIVES) + 7 * args.floor) + '|')
     for r in rows:
         per = ' | '.join(f"{r['per_bound'][k]:.2f}" for k in PRIMITIVES)
         floor_cells = f" {r['floor']:.2f} | {r['ratio'] / r['floor']:.2f} | " \
-            f"{r['walk']:.2f} | {r['walk_circuits']:.2f} |" if args.floor else ''
+            f"{r['walk']:.2f} | {r['walk_circuits']:.2f} | {r['required']:.2f} | " \
+            f"{r['ratio'] - r['again']:.2f} | {r['again']:.2f} |" if args.floor else ''
         print(f"| {r['world']} | {r['state']} | {100 * r['covered']:.2f} % | {r['ratio']:.2f} | "
               f"{per} | {100 * r['primitive']:.1f} % | {r['median_ms']:.2f} | "
               f"{r['p99_ms']:.2f} | {r['sim']:.0f} |{floor_cells}")
@@ -148,7 +156,10 @@ def main(argv: list[str] | None = None) -> int:
           (f" {np.mean([r['floor'] for r in rows]):.2f} | "
            f"{np.mean([r['ratio'] / r['floor'] for r in rows]):.2f} | "
            f"{np.mean([r['walk'] for r in rows]):.2f} | "
-           f"{np.mean([r['walk_circuits'] for r in rows]):.2f} |" if args.floor else ''))
+           f"{np.mean([r['walk_circuits'] for r in rows]):.2f} | "
+           f"{np.mean([r['required'] for r in rows]):.2f} | "
+           f"{np.mean([r['ratio'] - r['again'] for r in rows]):.2f} | "
+           f"{np.mean([r['again'] for r in rows]):.2f} |" if args.floor else ''))
     sys.stdout.flush()
     return 0
 

@@ -6,7 +6,7 @@ from pathlib import Path
 import pytest
 
 from coverage_pkg.algorithm1 import PaperConfig
-from coverage_pkg.algorithm1_floor import algorithm1_floor, nearest_first_walk
+from coverage_pkg.algorithm1_floor import algorithm1_floor, driven_again, nearest_first_walk
 from coverage_pkg.kinematic import run_kinematic
 from coverage_pkg.world import load_world, world_from_dict
 
@@ -162,3 +162,20 @@ def test_circuits_first_drives_the_curve_round_before_the_corners():
     assert 2.0 + 20.0 + 14.0 <= circuits['walk'] <= 2.0 + 20.0 + 24.0
     assert circuits['walk'] >= any_order['walk_min'] + 12.0
     assert any_order['walk_min'] == pytest.approx(algorithm1_floor(world)['floor'], abs=0.6)
+
+
+def test_driven_again_counts_the_way_back_and_a_second_lap_not_the_way_out():
+    """Out 10 m along a line and back: the way back is driven again but for its first
+    (lag - within) / 2 = 0.35 m, where the path it passes lies less than ``lag`` behind; a
+    circle of radius 2 m driven once: only the 0.3 m where it closes onto its start; twice:
+    the whole second lap as well; a straight line: nothing."""
+    import numpy as np
+    x = np.linspace(0.0, 10.0, 1001)
+    out = np.c_[x, np.zeros_like(x)]
+    assert driven_again(out) == 0.0
+    assert driven_again(np.r_[out, out[::-1][1:]]) == pytest.approx(10.0 - 0.35, abs=0.02)
+    t = np.linspace(0.0, 2 * math.pi, 2001)
+    circle = np.c_[2 * np.cos(t), 2 * np.sin(t)]
+    assert driven_again(circle) == pytest.approx(0.3, abs=0.02)
+    assert driven_again(np.r_[circle, circle[1:]]) == pytest.approx(4 * math.pi + 0.3, abs=0.03)
+

@@ -55,19 +55,24 @@ def test_paper_measure_reads_world_files_and_refuses_a_bad_one(tmp_path, capsys)
     assert '\n' not in str(exc.value) and capsys.readouterr().out == ''
 
 
-def test_paper_measure_floor_adds_the_floor_path_over_floor_and_the_walks(capsys):
-    """``--floor``: four more columns, the floor of Algorithm 1 (a multiple of the bound,
-    below the path's), path / floor and the two nearest-first walks (at or above the floor);
-    header, rule and rows have as many columns."""
+def test_paper_measure_floor_adds_the_floor_the_walks_and_the_paths_split(capsys):
+    """``--floor``: seven more columns, the floor of Algorithm 1 (a multiple of the bound,
+    below the path's), path / floor, the two nearest-first walks (at or above the floor),
+    the floor's required length (below the floor) and the path split into ground driven for
+    the first time and driven again (adding up to the path); header, rule and rows have as
+    many columns."""
     from coverage_pkg.paper_measure import main
     main(['--world', str(WORLDS / 't_hall.json'), '--floor'])
     lines = capsys.readouterr().out.splitlines()
     assert lines[0].endswith('| floor/bound | path/floor | nearest-first/bound | '
-                             'circuits-first/bound |')
+                             'circuits-first/bound | required/bound | first-time/bound | '
+                             'again/bound |')
     assert len({line.count('|') for line in lines}) == 1
     cells = [c.strip() for c in lines[2].split('|')]
-    ratio, floor, over, walk, circuits = (float(cells[4]), float(cells[-5]),
-                                          float(cells[-4]), float(cells[-3]),
-                                          float(cells[-2]))
+    ratio = float(cells[4])
+    floor, over, walk, circuits, required, first, again = (float(c) for c in cells[-8:-1])
     assert 1.0 < floor < ratio and over == pytest.approx(ratio / floor, abs=0.01)
     assert floor <= walk + 0.01 and floor <= circuits + 0.01
+    assert 0.0 < required <= floor
+    # the T's stem and one arm are traced out and back: ground is driven again
+    assert again > 0.1 and first + again == pytest.approx(ratio, abs=0.011)
