@@ -142,14 +142,15 @@ def run_demo(out, rtf=2.0, max_wall=240.0, world=None, overwrite=False, echo=pri
     from paramotion.bag.reader import bag_info
     from paramotion.launch import Launcher
 
+    without = parse_without(without)
+    modes = [modes] if isinstance(modes, str) else list(modes or ())
     with output_dir(out, overwrite) as tmp:
         args = {'record': True, 'bag': str(tmp / 'bag'), 'real_time_factor': float(rtf),
                 'world': str(world or demo_world())}
         if planner is not None:
             args['planner'] = planner
         if without:
-            args['without'] = ','.join(parse_without(without))
-        modes = [modes] if isinstance(modes, str) else list(modes or ())
+            args['without'] = ','.join(without)
         if modes:
             args['modes'] = ','.join(modes)
         desc = launch_xml.load('coverage', args)
@@ -187,7 +188,7 @@ def run_demo(out, rtf=2.0, max_wall=240.0, world=None, overwrite=False, echo=pri
             'mode': 'processes (paramotion launch coverage)',
             'world': world_path, 'world_name': world_obj.name, 'radius_m': radius,
             'detector_range_m': delta, 'real_time_factor': rtf, 'planner': planner_name,
-            'without': list(parse_without(without)), 'modes': parse_modes(modes),
+            'without': list(without), 'modes': parse_modes(modes),
             'outcome': 'complete' if state == 'done' else (
                 state if state in END_STATES else 'stopped_at_wall_limit'),
             'planner_state': state, 'planner_message': seen['message'],
@@ -213,7 +214,7 @@ def run_demo(out, rtf=2.0, max_wall=240.0, world=None, overwrite=False, echo=pri
             result['primitive_lengths_m'] = primitive_lengths(segments)
         write_json(tmp / 'result.json', result)
         from coverage_pkg.figure import render_coverage
-        label = planner_label(planner_name, parse_without(without), modes)
+        label = planner_label(planner_name, without, modes)
         title = (f"{world_obj.name}, {label}, one process per node at {rtf:g}x: "
                  f"path "
                  f"{ev['path_length_m']:.1f} m, covered {100 * ev['fraction']:.2f}% of CVS, "

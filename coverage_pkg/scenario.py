@@ -207,6 +207,7 @@ def _shift_graph(g, dx, dy):
 def _run(args):
     validate_inputs(args.world, args.delta, args.radius, args.detector, args.sonar_max_range,
                     args.max_sim_time, args.planner, args.without, args.mode)
+    label = planner_label(args.planner, args.without, args.mode)
     with output_dir(args.out, args.overwrite) as tmp:
         topics = [t for t in (args.record_topics or '').split(',') if t] or None
         result = run_coverage(args.world, args.delta, args.radius, args.detector,
@@ -219,8 +220,7 @@ def _run(args):
         write_json(tmp / 'result.json', result)
         from coverage_pkg.figure import render_coverage
         world = load_world(args.world)
-        title = (f"{world.name}: {planner_label(args.planner, args.without, args.mode)}, "
-                 f"{args.detector} detector "
+        title = (f"{world.name}: {label}, {args.detector} detector "
                  f"(range {result['detector_range_m']:g}"
                  f" m), path {result['path_length_m']:.1f} m (lower bound "
                  f"{result['lower_bound_path_m']:.1f} m), covered "
@@ -228,7 +228,6 @@ def _run(args):
                  f"{result['outcome']}")
         render_coverage(tmp / 'coverage.png', world, result['path'],
                         result['hierarchical_graph'], layers, uncovered, title)
-    label = planner_label(args.planner, args.without, args.mode)
     print(f"coverage {result['world_name']} ({label}, {args.detector} detector): "
           f"{result['outcome']} "
           f"after {result['sim_time_s']:.1f} s sim time in {result['wall_time_s']:.1f} s wall")
